@@ -1,0 +1,3 @@
+"""hvcb: condition monitoring for spring-operated HV circuit-breaker mechanisms."""
+
+__version__ = "0.1.0"
