@@ -64,7 +64,8 @@ def closing_rhs(t, x, params: Mapping[str, float], cam: CamProfile, geometry: Cl
     return [omega1, (drive - load) / (1.0 + BC * h1 * h1)]
 
 
-def closing_angle(t, P, *, cam: CamProfile, geometry: ClosingGeometry, dt_max: float = 1 / 64000):
+def closing_angle(t, P, *, cam: CamProfile, geometry: ClosingGeometry, dt_max: float = 1 / 64000,
+                  tau=None):
     """Output-shaft angle θ2 for a population of closing parameter sets.
 
     Parameters
@@ -77,6 +78,8 @@ def closing_angle(t, P, *, cam: CamProfile, geometry: ClosingGeometry, dt_max: f
     geometry : ClosingGeometry
     dt_max : float
         Largest RK4 step [s]; steps also land on every ``t``.
+    tau : array_like, shape (n,), optional
+        Per-row delay of the latch release [s]: row i is evaluated at ``t - tau[i]``.
 
     Returns
     -------
@@ -93,9 +96,11 @@ def closing_angle(t, P, *, cam: CamProfile, geometry: ClosingGeometry, dt_max: f
     P = np.ascontiguousarray(np.atleast_2d(P), dtype=float)
     if t.size and np.any(np.diff(t) < 0):
         raise ValueError("closing_angle needs non-decreasing times")
+    tau = np.zeros(P.shape[0]) if tau is None else np.ascontiguousarray(
+        np.broadcast_to(np.asarray(tau, dtype=float), (P.shape[0],)))
     g = geometry
     return integrate_closing_batch(
-        P, t, float(dt_max), g.xC0, g.rC, g.d, g.theta1_start,
+        P, t, tau, float(dt_max), g.xC0, g.rC, g.d, g.theta1_start,
         cam.theta1, cam.theta2, cam.coefficients, cam.rise_end)
 
 

@@ -39,7 +39,7 @@ def _accel(th, om, k, AC, BC, CC, DC, xC0, rC, d, x, y, c):
 
 
 @njit(cache=True, parallel=False)
-def integrate_closing_batch(P, t, dt_max, xC0, rC, d, theta1_start, x, y, c, rise_end):
+def integrate_closing_batch(P, t, tau, dt_max, xC0, rC, d, theta1_start, x, y, c, rise_end):
     n = P.shape[0]
     m = t.size
     theta2 = np.empty((n, m))
@@ -53,7 +53,7 @@ def integrate_closing_batch(P, t, dt_max, xC0, rC, d, theta1_start, x, y, c, ris
         tc = 0.0
         k = 0
         for j in range(m):
-            tj = t[j]
+            tj = t[j] - tau[i]
             if tj > tc:
                 span = tj - tc
                 nsub = int(math.ceil(span / dt_max - 1e-9))

@@ -1,0 +1,101 @@
+"""CMA-ES in ask/tell form with the paper's stopping rules (Section 3.3).
+
+The caller injects ``evaluate``: it scores a whole population at once, so the population can be
+vectorised, compiled or sent to a pool. The search runs in the unit cube; candidates outside it
+are scored at their projection plus a quadratic penalty.
+"""
+
+from __future__ import annotations
+
+import random
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+from cma import purecma
+
+
+@dataclass(frozen=True)
+class StoppingRules:
+    """The paper's four stopping rules (any one ends the search)."""
+
+    tol_x: float = 1e-8          # change of the normalised mean between iterations
+    tol_fun: float = 1e-8        # change of the best fitness ...
+    tol_fun_window: int = 20     # ... over this many iterations
+    tol_sigma: float = 1e-8      # step size
+    max_iterations: int = 1000
+
+
+@dataclass
+class CMAResult:
+    """Outcome of one CMA-ES run in the unit cube."""
+
+    x_best: np.ndarray
+    f_best: float
+    evaluations: int
+    iterations: int
+    stop_reason: str
+    history: list = field(default_factory=list)  # (iteration, best f, sigma)
+
+
+def minimize(evaluate: Callable[[np.ndarray], np.ndarray], dimension: int, *, seed: int,
+             x0=None, sigma0: float = 0.3, popsize: int | None = None,
+             rules: StoppingRules = StoppingRules(), record: bool = False) -> CMAResult:
+    """Minimise ``evaluate`` over the unit cube [0, 1]^dimension.
+
+    Parameters
+    ----------
+    evaluate : callable
+        ``evaluate(X) -> f`` with X of shape (λ, dimension) in the unit cube; returns λ values
+        (NaN or inf for failed candidates, which are resampled-as-worst).
+    seed : int
+        Explicit seed (pycma's ``seed=0`` would mean "time"; here every seed is literal).
+    """
+    if seed is None:
+        raise ValueError("an explicit seed is required")
+    rng = random.Random(int(seed))
+    x0 = [0.5] * dimension if x0 is None else [float(v) for v in x0]
+    es = purecma.CMAES(x0, sigma0, popsize=popsize, randn=rng.normalvariate,
+                       maxfevals=10**9)
+    best_x = np.array(x0)
+    best_f = np.inf
+    best_hist: list[float] = []
+    history = []
+    prev_mean = np.array(es.xmean, dtype=float)
+    reason = "max_iterations"
+    it = 0
+    evaluations = 0
+    while it < rules.max_iterations:
+        it += 1
+        X = np.array(es.ask(), dtype=float)
+        inside = np.clip(X, 0.0, 1.0)
+        f = np.asarray(evaluate(inside), dtype=float)
+        evaluations += len(X)
+        worst = np.nanmax(np.where(np.isfinite(f), f, np.nan)) if np.any(np.isfinite(f)) else 1e6
+        f = np.where(np.isfinite(f), f, 10.0 * abs(worst) + 1.0)
+        penalised = f + np.sum((X - inside) ** 2, axis=1)
+        es.tell([list(x) for x in X], list(penalised))
+        k = int(np.argmin(f + np.sum((X - inside) ** 2, axis=1)))
+        if f[k] < best_f and np.all(X[k] == inside[k]):
+            best_f, best_x = float(f[k]), inside[k].copy()
+        best_hist.append(best_f)
+        if record:
+            history.append((it, best_f, float(es.sigma)))
+        mean = np.array(es.xmean, dtype=float)
+        if np.max(np.abs(mean - prev_mean)) < rules.tol_x:
+            reason = "tol_x"
+            break
+        prev_mean = mean
+        w = rules.tol_fun_window
+        if len(best_hist) > w and best_hist[-w - 1] - best_hist[-1] < rules.tol_fun:
+            reason = "tol_fun"
+            break
+        if es.sigma < rules.tol_sigma:
+            reason = "tol_sigma"
+            break
+    if not np.isfinite(best_f):
+        # Every candidate hit the boundary: fall back to the final mean.
+        best_x = np.clip(np.array(es.xmean, dtype=float), 0, 1)
+        best_f = float(evaluate(best_x[None, :])[0])
+        evaluations += 1
+    return CMAResult(best_x, best_f, evaluations, it, reason, history)

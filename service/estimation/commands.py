@@ -1,0 +1,66 @@
+"""``hvcb fit``: estimate the model parameters of one captured operation."""
+
+from __future__ import annotations
+
+import json
+import sys
+
+from ..acquisition.capture import CaptureError
+from ..acquisition.capture_file import read_capture
+from ..breaker_file import BreakerFileError, load_breaker
+from ..cli import UserError
+from .fit import fit_capture
+from .window import FitError
+
+DEFAULT_BREAKER = "config/breakers/reference-252kV.toml"
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser("fit", help="fit the dynamic model to one captured operation")
+    p.add_argument("capture", help="COMTRADE .cfg (with its .dat) or CSV t_s,travel_rad[,vibration_g]")
+    p.add_argument("--breaker", default=DEFAULT_BREAKER, help="breaker file (TOML)")
+    p.add_argument("--operation", required=True, choices=("open", "close"))
+    p.add_argument("--dc", type=float, default=None,
+                   help="closing only: DC = AO [s^-2] from the latest opening fit (default: breaker file)")
+    p.add_argument("--seed", type=int, default=1, help="CMA-ES seed (explicit; default 1)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(func=run_fit)
+
+
+def run_fit(args) -> int:
+    try:
+        breaker = load_breaker(args.breaker)
+        capture = read_capture(args.capture, travel_channel=breaker.channels["travel"],
+                               vibration_channel=breaker.channels["vibration"])
+        result = fit_capture(capture, breaker, args.operation, dc=args.dc, seed=args.seed)
+    except (BreakerFileError, CaptureError, FitError) as exc:
+        raise UserError(str(exc)) from None
+    if args.json:
+        json.dump(result.to_dict(), sys.stdout, allow_nan=False, default=_finite)
+        sys.stdout.write("\n")
+        return 0
+    print(format_fit(result))
+    return 0
+
+
+def _finite(value):
+    return None
+
+
+def format_fit(result) -> str:
+    """A plain table for the terminal."""
+    lines = [f"{result.operation} fit: RMSE {result.rmse_rad * 1e3:.3f} mrad "
+             f"(noise {result.noise_rad * 1e3:.3f} mrad), F = {result.fitness:.1f}, "
+             f"{result.evaluations} evaluations, {result.runtime_s * 1e3:.0f} ms",
+             f"window {result.window_s[0] * 1e3:.3f}–{result.window_s[1] * 1e3:.3f} ms, "
+             f"onset delay {result.onset_delay_s * 1e3:.3f} ms",
+             f"{'param':<6}{'value':>14}{'95% CI':>30}{'±%':>8}"]
+    for name, value in result.parameters.items():
+        lo, hi = result.ci95[name]
+        pct = 100 * (hi - lo) / 2 / abs(value) if value else float("nan")
+        lines.append(f"{name:<6}{value:>14.4f}{f'[{lo:.4f}, {hi:.4f}]':>30}{pct:>8.3f}")
+    if result.operation == "close":
+        lines.append(f"DC = {result.dc_used:.2f} s^-2 from the {result.dc_source}")
+    for w in result.warnings:
+        lines.append(f"warning: {w}")
+    return "\n".join(lines)

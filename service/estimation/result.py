@@ -1,0 +1,121 @@
+"""The result of one fit, as the CLI, the service and the studies see it."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..acquisition.capture import Capture
+from ..mechanics.breaker import Breaker
+from ..mechanics.coordinates import travel_from_coordinate
+
+
+@dataclass
+class FitResult:
+    """Estimated model parameters of one operation with their uncertainty.
+
+    Attributes
+    ----------
+    operation : str
+        ``open`` or ``close``.
+    parameters : dict
+        Estimates: AO [s^-2], BO [s^-2], DO [s^-1], EO [s^-2] or AC [s^-2], BC [-], CC [s^-2].
+    stderr, ci95 : dict
+        Standard errors and 95 % confidence intervals, same units.
+    correlation : list of list
+        Correlation matrix of ``parameter_names`` (the onset delay included last).
+    rmse_rad : float
+        RMSE between fitted and measured curves over the valid interval, at the measured samples.
+    fitness : float
+        The paper's F = 1/RMSE [rad^-1].
+    window_s : tuple
+        Valid interval [start, end] in seconds from the first sample.
+    onset_delay_s : float
+        Estimated delay from the latch shock to the onset of motion [s].
+    noise_rad : float
+        Travel noise from the idle pre-trigger samples [rad].
+    evaluations : int
+        Model evaluations (CMA-ES candidates plus polish).
+    runtime_s : float
+    identifiable : bool
+        False when the fit is ill-conditioned (parameters not separately determined).
+    condition_number : float
+    dc_used, dc_source :
+        For closings, the opening-spring factor DC used [s^-2] and where it came from.
+    ranges : dict
+        Final search ranges (after re-adaptation).
+    readaptations : int
+        How many times a range had to be moved (paper steps 5–6).
+    warnings : list of str
+    characteristics : dict
+        Classic travel characteristics of the measured curve.
+    """
+
+    operation: str
+    parameters: dict
+    stderr: dict
+    ci95: dict
+    correlation: list
+    parameter_names: list
+    rmse_rad: float
+    fitness: float
+    window_s: tuple
+    onset_delay_s: float
+    noise_rad: float
+    evaluations: int
+    runtime_s: float
+    identifiable: bool
+    condition_number: float
+    dc_used: float | None = None
+    dc_source: str | None = None
+    ranges: dict = field(default_factory=dict)
+    readaptations: int = 0
+    stages: list = field(default_factory=list)
+    warnings: list = field(default_factory=list)
+    characteristics: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        out = {
+            "operation": self.operation,
+            "parameters": {k: float(v) for k, v in self.parameters.items()},
+            "ci95": {k: [float(a), float(b)] for k, (a, b) in self.ci95.items()},
+            "stderr": {k: float(v) for k, v in self.stderr.items()},
+            "correlation": {"names": list(self.parameter_names),
+                            "matrix": [[round(float(v), 6) for v in row] for row in self.correlation]},
+            "rmse_rad": float(self.rmse_rad),
+            "fitness": float(self.fitness),
+            "window_s": [float(self.window_s[0]), float(self.window_s[1])],
+            "onset_delay_s": float(self.onset_delay_s),
+            "noise_rad": float(self.noise_rad),
+            "evaluations": int(self.evaluations),
+            "runtime_s": float(self.runtime_s),
+            "identifiable": bool(self.identifiable),
+            "condition_number": float(self.condition_number),
+            "ranges": self.ranges,
+            "readaptations": int(self.readaptations),
+            "stages": self.stages,
+            "warnings": list(self.warnings),
+            "characteristics": self.characteristics,
+        }
+        if self.operation == "close":
+            out["dc_used"] = float(self.dc_used)
+            out["dc_source"] = self.dc_source
+        return out
+
+    def fitted_travel(self, capture: Capture, breaker: Breaker) -> np.ndarray:
+        """The fitted model as travel [rad from closed] at every sample of ``capture``.
+
+        Before the onset of motion the model is at rest; the curve is the model's, also beyond
+        the valid interval.
+        """
+        from .curves import ClosingCurves, OpeningCurves
+
+        t = capture.t - self.window_s[0]
+        if self.operation == "open":
+            x = [self.parameters[k] for k in ("AO", "BO", "DO", "EO")] + [self.onset_delay_s]
+            theta = OpeningCurves.at(t, x, breaker)
+        else:
+            x = [self.parameters[k] for k in ("AC", "BC", "CC")] + [self.onset_delay_s]
+            theta = ClosingCurves.at(t, x, breaker, self.dc_used)
+        return travel_from_coordinate(theta, self.operation, breaker.stroke)

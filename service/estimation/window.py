@@ -1,0 +1,225 @@
+"""The valid fitting window of a capture, its noise floor, and the decimated fitting grid.
+
+Every check an engineer would make before trusting a fit lives here: NaN, too short, no motion,
+a saturated travel channel, a wrong-direction operation.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..acquisition.capture import Capture
+from ..mechanics.breaker import Breaker
+from ..mechanics.coordinates import operation_coordinate
+
+
+class FitError(ValueError):
+    """A capture cannot be fitted: the message says why, for an engineer."""
+
+
+@dataclass(frozen=True)
+class FitWindow:
+    """Measured data of one operation, ready for fitting.
+
+    Attributes
+    ----------
+    t : ndarray
+        Sample times from the window start (the latch shock) [s].
+    y : ndarray
+        Operation coordinate at those samples [rad].
+    t_start : float
+        Window start in capture time [s from the first sample].
+    t_end : float
+        Window end (peak of the operation coordinate) [s from the first sample].
+    noise_rad : float
+        Travel noise standard deviation from the idle pre-trigger samples [rad].
+    noise_source : str
+        ``pre-trigger`` or ``differences`` (no idle part: estimated from sample differences).
+    shock_found : bool
+        Whether the start came from the vibration shock (else the first sample).
+    sample_rate : float
+        [Hz]
+    """
+
+    t: np.ndarray
+    y: np.ndarray
+    t_start: float
+    t_end: float
+    noise_rad: float
+    noise_source: str
+    shock_found: bool
+    sample_rate: float
+
+
+@dataclass(frozen=True)
+class Grid:
+    """Block-averaged samples: the anti-aliased fitting grid.
+
+    ``t`` are block centres [s], ``y`` block means [rad], ``count`` samples per block and
+    ``spread`` the mean of (t - centre)^2 within each block [s^2] (for the curvature term).
+    """
+
+    t: np.ndarray
+    y: np.ndarray
+    count: np.ndarray
+    spread: np.ndarray
+
+    @property
+    def weight(self) -> np.ndarray:
+        """sqrt(count): makes block residuals carry the per-sample noise variance."""
+        return np.sqrt(self.count)
+
+
+def decimate(t, y, block: int) -> Grid:
+    """Average consecutive blocks of ``block`` samples (a boxcar anti-alias filter)."""
+    n = t.size
+    if block <= 1:
+        return Grid(t.copy(), y.copy(), np.ones(n), np.zeros(n))
+    edges = np.arange(0, n, block)
+    count = np.diff(np.append(edges, n)).astype(float)
+    tc = np.add.reduceat(t, edges) / count
+    yc = np.add.reduceat(y, edges) / count
+    dt = t[1] - t[0] if n > 1 else 0.0
+    spread = dt * dt * (count * count - 1.0) / 12.0
+    return Grid(tc, yc, count, spread)
+
+
+MIN_IDLE = 200
+
+
+def prepare_window(capture: Capture, breaker: Breaker, operation: str) -> FitWindow:
+    """Find the valid interval of one operation in a capture.
+
+    The start is the latch-release shock in the vibration channel (the first sample when there
+    is no vibration channel); the end is the peak of the operation's own coordinate, fitted
+    rather than taken as the argmax of noisy samples.
+    """
+    fs = float(capture.sample_rate)
+    travel = np.asarray(capture.travel, dtype=float)
+    src = capture.source or "capture"
+    if not np.isfinite(fs) or fs <= 0:
+        raise FitError(f"{src}: invalid sample rate {fs}")
+    if travel.size < 0.01 * fs or travel.size < 64:
+        raise FitError(f"{src}: capture too short ({travel.size} samples, {travel.size / fs * 1e3:.1f} ms)")
+    if not np.all(np.isfinite(travel)):
+        raise FitError(f"{src}: the travel channel contains NaN or infinite samples")
+    stroke = breaker.stroke
+    y = operation_coordinate(travel, operation, stroke)
+    span = float(np.ptp(travel))
+    if span < 0.1 * stroke:
+        raise FitError(f"{src}: no motion: the travel moves only {span:.4f} rad "
+                       f"(stroke {stroke:.3f} rad); is this an operation?")
+    if span > 3.0 * stroke + 0.5:
+        raise FitError(f"{src}: the travel spans {span:.2f} rad, far more than the {stroke:.2f} rad "
+                       "stroke: check the channel's unit (rad expected, not degrees)")
+    smooth = _moving_average(y, max(int(fs * 0.5e-3), 1))
+    # Direction: the operation's coordinate must rise.
+    head = smooth[: max(int(0.05 * y.size), 8)].mean()
+    tail = smooth[-max(int(0.05 * y.size), 8):].mean()
+    if tail - head < 0.5 * span:
+        other = "close" if operation == "open" else "open"
+        raise FitError(f"{src}: the travel moves the wrong way for an {operation_word(operation)} "
+                       f"(it looks like a{'n' if other == 'open' else ''} {operation_word(other)})")
+    # Motion onset from travel: first sustained rise above the idle level.
+    base = np.median(y[: max(int(0.005 * fs), 16)])
+    i_move = int(np.argmax(smooth > base + 0.02 * span))
+    i_shock, shock_found = _find_shock(capture, i_move, fs, operation)
+    idle = y[:i_shock] if shock_found else y[: max(i_move - int((0.002 if operation == 'open' else 0.012) * fs), 0)]
+    if idle.size >= MIN_IDLE:
+        noise = float(np.std(idle - np.mean(idle), ddof=1))
+        noise_source = "pre-trigger"
+    else:
+        d = np.diff(y[: max(i_move, MIN_IDLE)]) if i_move > 8 else np.diff(y)
+        noise = float(np.median(np.abs(d - np.median(d))) * 1.4826 / np.sqrt(2))
+        noise_source = "differences"
+    noise = max(noise, 1e-7)
+    i_end, t_end = _peak(y, smooth, i_move, fs, operation, noise)
+    if i_end >= y.size - 2:
+        raise FitError(f"{src}: the capture ends before the {operation_word(operation)} reaches its "
+                       "end position (truncated capture)")
+    _check_saturation(capture, i_shock, i_end, src)
+    t_start = i_shock / fs
+    sl = slice(i_shock, i_end + 1)
+    t = np.arange(i_end + 1 - i_shock) / fs
+    if t.size < 0.005 * fs:
+        raise FitError(f"{src}: the valid interval is only {t.size / fs * 1e3:.1f} ms long")
+    return FitWindow(t, y[sl].copy(), t_start, t_end, noise, noise_source, shock_found, fs)
+
+
+def operation_word(operation: str) -> str:
+    return {"open": "opening", "close": "closing"}.get(operation, operation)
+
+
+def _moving_average(y, n):
+    if n <= 1:
+        return y
+    kernel = np.ones(n) / n
+    padded = np.concatenate([np.full(n // 2, y[0]), y, np.full(n - 1 - n // 2, y[-1])])
+    return np.convolve(padded, kernel, mode="valid")
+
+
+def _find_shock(capture: Capture, i_move: int, fs: float, operation: str):
+    """Index of the latch-release shock: the first vibration sample above threshold before the
+    travel moves. A closing's camshaft runs free for several ms before the output shaft moves,
+    so the search reaches further back for closings."""
+    vib = capture.vibration
+    if vib is None:
+        return 0, False
+    vib = np.asarray(vib, dtype=float)
+    ref = vib[: max(min(i_move, int(0.005 * fs)), 32)]
+    centre = float(np.median(ref))
+    sd = 1.4826 * float(np.median(np.abs(ref - centre)))
+    threshold = max(float(capture.meta.get("shock_threshold_g", 50.0)), 10.0 * sd)
+    lead = 0.005 if operation == "open" else 0.040
+    lo = max(i_move - int(lead * fs), 0)
+    hit = np.nonzero(np.abs(vib[lo: i_move + 1] - centre) > threshold)[0]
+    if hit.size == 0:
+        return 0, False
+    return lo + int(hit[0]), True
+
+
+def _peak(y, smooth, i_move, fs, operation, noise):
+    """Index and time [s] of the maximum of the operation coordinate."""
+    i_max = i_move + int(np.argmax(smooth[i_move:]))
+    if operation == "close":
+        # The cam dwell holds θ2 at its maximum: the end is where the rise reaches the settled
+        # level, i.e. the first time the smoothed curve comes within noise of it.
+        level = np.median(y[i_max: i_max + max(int(0.005 * fs), 8)])
+        tol = max(3.0 * noise / np.sqrt(max(int(fs * 0.5e-3), 1)), 1e-4)
+        i_end = i_move + int(np.argmax(smooth[i_move:] >= level - tol))
+        return i_end, i_end / fs
+    half = int(0.006 * fs)
+    lo, hi = max(i_max - half, i_move), min(i_max + half, y.size - 1)
+    tt = (np.arange(lo, hi + 1) - i_max) / fs
+    coef = np.polyfit(tt, y[lo: hi + 1], 3)
+    roots = np.roots(np.polyder(coef))
+    roots = roots[np.isreal(roots)].real
+    roots = roots[(roots > tt[0]) & (roots < tt[-1]) & (np.polyval(np.polyder(coef, 2), roots) < 0)]
+    t_peak = (i_max + (roots[np.argmin(np.abs(roots))] * fs if roots.size else 0.0)) / fs
+    return int(round(t_peak * fs)), float(t_peak)
+
+
+def _check_saturation(capture: Capture, i0: int, i1: int, src: str, run: int = 64) -> None:
+    """A travel channel pinned at its full-scale code while moving is clipped."""
+    lim = capture.travel_limits
+    if lim is None:
+        return
+    seg = np.asarray(capture.travel[i0: i1 + 1], dtype=float)
+    span = lim[1] - lim[0]
+    for edge in lim:
+        at = np.abs(seg - edge) <= 1e-6 * span
+        if at.sum() >= run:
+            longest = _longest_run(at)
+            if longest >= run:
+                raise FitError(f"{src}: the travel channel is saturated at {edge:.4f} rad for "
+                               f"{longest} consecutive samples during the operation")
+
+
+def _longest_run(mask):
+    if not mask.any():
+        return 0
+    padded = np.concatenate([[0], mask.astype(int), [0]])
+    d = np.diff(padded)
+    return int(np.max(np.nonzero(d == -1)[0] - np.nonzero(d == 1)[0]))

@@ -1,0 +1,26 @@
+import os
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+BREAKER_FILE = REPO / "config" / "breakers" / "reference-252kV.toml"
+
+
+def shared_dir() -> Path:
+    return Path(os.environ.get("HVCB_SHARED_DIR", REPO.parent / "shared"))
+
+
+@pytest.fixture(scope="session")
+def breaker():
+    from service.breaker_file import load_breaker
+
+    return load_breaker(BREAKER_FILE)
+
+
+@pytest.fixture(scope="session")
+def samples_dir():
+    d = shared_dir() / "samples"
+    if not d.is_dir():
+        pytest.skip(f"shared samples not found at {d} (set HVCB_SHARED_DIR)")
+    return d
