@@ -1,5 +1,6 @@
-"""The ``hvcb`` command. Each domain package registers its own subcommands; errors reach the
-user as one line and a non-zero exit, never a traceback."""
+"""The ``hvcb`` command. Each domain package registers its own subcommands; only the module of
+the command being run is imported. Errors reach the user as one line and a non-zero exit, never a
+traceback."""
 
 from __future__ import annotations
 
@@ -7,38 +8,39 @@ import argparse
 import importlib
 import sys
 
-# Each module defines ``register(subparsers)``; subcommands set ``func(args) -> int``.
-COMMAND_MODULES = (
-    "service.estimation.commands",
-    "service.studies.commands",
-    "service.acquisition.commands",
-    "service.api.commands",
-    "service.diagnosis.commands",
-    "drivers.commands",
-)
+from service.errors import UserError
+
+# Subcommand -> module defining ``register(subparsers)``; subcommands set ``func(args) -> int``.
+COMMANDS = {
+    "fit": ("service.estimation.commands", "fit the dynamic model to one captured operation"),
+    "study": ("service.studies.commands", "reproduce a study (identifiability, sensitivity, ...)"),
+    "detect": ("service.acquisition.commands", "find operations in a recorded stream"),
+    "capture": ("service.acquisition.commands", "capture operations from a DAQ driver to COMTRADE"),
+    "emulate": ("drivers.commands", "run a serial or Modbus DAQ emulator"),
+    "serve": ("service.api.commands", "run the monitoring service"),
+    "demo": ("service.api.commands", "run the embedded demo (emulated DAQ, SQLite)"),
+    "diagnose": ("service.diagnosis.commands", "sim-to-real gap diagnosis of captures"),
+}
 
 
-class UserError(Exception):
-    """An error whose message is meant for the person at the terminal."""
-
-
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="hvcb", description="HV circuit-breaker mechanism monitor")
-    sub = parser.add_subparsers(dest="command", required=True)
-    for name in COMMAND_MODULES:
-        try:
-            module = importlib.import_module(name)
-        except ModuleNotFoundError as exc:
-            if exc.name and name.startswith(exc.name):
-                continue  # that domain has no commands yet
-            raise
-        module.register(sub)
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    if command in COMMANDS:
+        importlib.import_module(COMMANDS[command][0]).register(sub)
+    else:
+        for name, (_, text) in COMMANDS.items():
+            sub.add_parser(name, help=text)
     return parser
 
 
 def main(argv=None) -> int:
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    command = next((a for a in argv if not a.startswith("-")), None)
+    parser = build_parser(command)
     args = parser.parse_args(argv)
+    if not hasattr(args, "func"):
+        parser.error(f"'{args.command}' is not available in this installation")
     try:
         return int(args.func(args) or 0)
     except KeyboardInterrupt:

@@ -8,7 +8,7 @@ import sys
 from ..acquisition.capture import CaptureError
 from ..acquisition.capture_file import read_capture
 from ..breaker_file import BreakerFileError, load_breaker
-from ..cli import UserError
+from ..errors import UserError
 from .fit import fit_capture
 from .window import FitError
 

@@ -1,0 +1,72 @@
+"""The estimator on the independent simulator's captures (known truth)."""
+
+import json
+
+import numpy as np
+import pytest
+
+from service.acquisition.capture_file import read_capture
+from service.estimation import fit_capture
+
+SAMPLES = ["open-nominal", "open-nominal-ascii", "open-buffer-leak", "close-nominal"]
+
+
+@pytest.fixture(scope="module")
+def fits(samples_dir, breaker):
+    out = {}
+    for name in SAMPLES:
+        cap = read_capture(samples_dir / f"{name}.cfg")
+        truth = json.loads((samples_dir / f"{name}.truth.json").read_text())
+        out[name] = (fit_capture(cap, breaker, truth["kind"], seed=1), truth)
+    return out
+
+
+@pytest.mark.parametrize("name", SAMPLES)
+def test_truth_within_three_standard_errors_and_ci_narrower_than_2_percent(fits, name):
+    result, truth = fits[name]
+    for param, value in result.parameters.items():
+        true = truth["params"][param]
+        se = result.stderr[param]
+        assert abs(value - true) <= 3 * se, f"{param}: {value} vs {true} (se {se})"
+        lo, hi = result.ci95[param]
+        assert (hi - lo) / 2 < 0.02 * abs(value), f"{param} CI ±{(hi - lo) / 2 / value:.2%}"
+
+
+@pytest.mark.parametrize("name", SAMPLES)
+def test_window_and_noise(fits, name):
+    result, truth = fits[name]
+    # The window starts at the latch shock, ~0.4 ms before motion; the fitted delay finds the onset.
+    assert abs(result.window_s[0] + result.onset_delay_s - truth["t_motion_start"]) < 0.1e-3
+    assert abs(result.window_s[1] - truth["t_max"]) < 1e-3
+    assert result.noise_rad == pytest.approx(truth["noise_rad_sd"], rel=0.1)
+    assert result.rmse_rad == pytest.approx(truth["noise_rad_sd"], rel=0.1)
+    assert result.identifiable
+
+
+def test_buffer_leak_lowers_do_by_a_quarter(fits):
+    nominal = fits["open-nominal"][0].parameters["DO"]
+    leak = fits["open-buffer-leak"][0].parameters["DO"]
+    assert leak <= 0.75 * nominal
+
+
+def test_range_readaptation_reaches_true_eo_outside_table2(fits):
+    result, truth = fits["open-nominal"]
+    assert truth["params"]["EO"] < 4000  # outside Table 2's [4000, 6000]
+    assert result.readaptations >= 1
+    assert result.ranges["EO"][0] < truth["params"]["EO"] < result.ranges["EO"][1]
+
+
+def test_same_seed_same_result(samples_dir, breaker):
+    cap = read_capture(samples_dir / "open-nominal.cfg")
+    a = fit_capture(cap, breaker, "open", seed=7)
+    b = fit_capture(cap, breaker, "open", seed=7)
+    assert a.parameters == b.parameters
+
+
+def test_fitted_curve_follows_the_measurement(fits, samples_dir, breaker):
+    result, _ = fits["close-nominal"]
+    cap = read_capture(samples_dir / "close-nominal.cfg")
+    fitted = result.fitted_travel(cap, breaker)
+    i0, i1 = (int(round(v * cap.sample_rate)) for v in result.window_s)
+    resid = cap.travel[i0:i1] - fitted[i0:i1]
+    assert np.sqrt(np.mean(resid**2)) == pytest.approx(result.rmse_rad, rel=1e-3)
