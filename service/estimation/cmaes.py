@@ -40,7 +40,8 @@ class CMAResult:
 
 def minimize(evaluate: Callable[[np.ndarray], np.ndarray], dimension: int, *, seed: int,
              x0=None, sigma0: float = 0.3, popsize: int | None = None,
-             rules: StoppingRules = StoppingRules(), record: bool = False) -> CMAResult:
+             rules: StoppingRules = StoppingRules(), record: bool = False,
+             edge_dims: tuple = (), edge: float = 0.01, edge_sigma: float = 0.02) -> CMAResult:
     """Minimise ``evaluate`` over the unit cube [0, 1]^dimension.
 
     Parameters
@@ -50,6 +51,10 @@ def minimize(evaluate: Callable[[np.ndarray], np.ndarray], dimension: int, *, se
         (NaN or inf for failed candidates, which are resampled-as-worst).
     seed : int
         Explicit seed (pycma's ``seed=0`` would mean "time"; here every seed is literal).
+    edge_dims : tuple of int
+        Dimensions whose range may be re-adapted: once the mean is pinned within ``edge`` of a
+        bound with a step size below ``edge_sigma``, the run stops (``edge``) so the caller can
+        move the range instead of converging against the bound.
     """
     if seed is None:
         raise ValueError("an explicit seed is required")
@@ -92,6 +97,10 @@ def minimize(evaluate: Callable[[np.ndarray], np.ndarray], dimension: int, *, se
             break
         if es.sigma < rules.tol_sigma:
             reason = "tol_sigma"
+            break
+        if edge_dims and es.sigma < edge_sigma and any(
+                mean[d] < edge or mean[d] > 1 - edge for d in edge_dims):
+            reason = "edge"
             break
     if not np.isfinite(best_f):
         # Every candidate hit the boundary: fall back to the final mean.

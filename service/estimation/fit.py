@@ -124,7 +124,8 @@ def _search(score, space: ParameterSpace, seed: int, settings: FitSettings, eval
     while True:
         res = cmaes.minimize(lambda U: evaluator(lambda X: score(space.to_physical(X)), U),
                              len(space.names), seed=seed + readapt, sigma0=settings.sigma0,
-                             rules=settings.rules)
+                             rules=settings.rules,
+                             edge_dims=tuple(i for i, n in enumerate(space.names) if n not in fixed))
         evaluations += res.evaluations
         x = space.to_physical(res.x_best)
         stages.append({"ranges": space.as_dict(), "iterations": res.iterations,

@@ -9,10 +9,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _cam(theta1, k, x, y, c):
     n = x.size
     if theta1 <= x[0]:
@@ -30,7 +30,7 @@ def _cam(theta1, k, x, y, c):
     return h, h1, h2, k
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _accel(th, om, k, AC, BC, CC, DC, xC0, rC, d, x, y, c):
     h, h1, h2, k = _cam(th, k, x, y, c)
     ct = math.cos(th)
@@ -38,7 +38,7 @@ def _accel(th, om, k, AC, BC, CC, DC, xC0, rC, d, x, y, c):
     return (AC * g - BC * h1 * (h2 * om * om + CC + DC * h)) / (1.0 + BC * h1 * h1), k
 
 
-@njit(cache=True, parallel=False)
+@njit(cache=True, error_model="numpy")
 def integrate_closing_batch(P, t, tau, dt_max, xC0, rC, d, theta1_start, x, y, c, rise_end):
     n = P.shape[0]
     m = t.size
@@ -46,7 +46,7 @@ def integrate_closing_batch(P, t, tau, dt_max, xC0, rC, d, theta1_start, x, y, c
     omega2 = np.empty((n, m))
     t_peak = np.full(n, np.nan)
     stalled = np.zeros(n, dtype=np.bool_)
-    for i in prange(n):
+    for i in range(n):
         AC, BC, CC, DC = P[i, 0], P[i, 1], P[i, 2], P[i, 3]
         th = theta1_start
         om = 0.0
