@@ -1,0 +1,135 @@
+"""Driver → trigger → durable COMTRADE files: the acquisition loop the service runs.
+
+A capture is handed on (``on_capture``) only after its files are written, fsynced and renamed
+into place, so a crash never leaves a queued job pointing at a half-written file.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import inspect
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .capture import Capture
+from .comtrade_writer import write_comtrade
+from .trigger import DetectedOperation, TriggerDetector, TriggerSettings, detect_capture
+
+CAPTURE_FLAG = "capture"  # SampleBlock flag: a whole DAQ-triggered capture (Modbus), not a stream slice
+NO_VIBRATION_FLAG = "no_vibration"  # SampleBlock flag: the source has no vibration channel
+
+
+@dataclass
+class CaptureStats:
+    """Counters of one acquisition run.
+
+    Attributes
+    ----------
+    blocks, samples : int
+        Blocks and samples read from the driver.
+    gaps : int
+        Jumps forward in the sample index (lost samples).
+    lost_samples : int
+        Samples missing in those jumps.
+    captures : int
+        Operations written to disk.
+    incomplete : int
+        Of those, captures flagged ``incomplete``.
+    by_operation : dict
+        Captures per operation (``open``/``close``).
+    files : list of Path
+        The .cfg files written, in order.
+    """
+
+    blocks: int = 0
+    samples: int = 0
+    gaps: int = 0
+    lost_samples: int = 0
+    captures: int = 0
+    incomplete: int = 0
+    by_operation: dict = field(default_factory=dict)
+    files: list = field(default_factory=list)
+
+
+def capture_name(detected: DetectedOperation, prefix: str = "op") -> str:
+    """File stem of a capture: its operation and stream sample index of the shock."""
+    return f"{prefix}-{detected.shock_index:012d}-{detected.operation}"
+
+
+async def capture_stream(driver, detector: TriggerDetector | TriggerSettings, out_dir: str | Path, *,
+                         on_capture: Callable | None = None, fmt: str = "BINARY",
+                         prefix: str = "op", station: str = "hvcb",
+                         max_captures: int | None = None) -> CaptureStats:
+    """Read blocks from ``driver`` until it ends, writing each detected operation durably.
+
+    Parameters
+    ----------
+    driver : async iterator of SampleBlock
+        Any driver (serial stream, Modbus, replay) or an async generator.
+    detector : TriggerDetector or TriggerSettings
+        With settings, a detector is made at the first block's sample rate.
+    out_dir : path
+        Where the COMTRADE files go.
+    on_capture : callable, optional
+        ``on_capture(cfg_path, detected)``, plain or async; called after the files are durable.
+    fmt : str
+        COMTRADE data format (``BINARY`` default, ``ASCII``, ``BINARY32``, ``FLOAT32``).
+    max_captures : int, optional
+        Stop after this many captures (the driver is closed if it can be).
+    """
+    out_dir = Path(out_dir)
+    stats = CaptureStats()
+    expected = None
+
+    async def emit(found):
+        for det in found:
+            path = await asyncio.to_thread(write_comtrade, det.capture, out_dir,
+                                           capture_name(det, prefix), format=fmt, station=station)
+            stats.captures += 1
+            stats.files.append(path)
+            stats.by_operation[det.operation] = stats.by_operation.get(det.operation, 0) + 1
+            if "incomplete" in det.flags:
+                stats.incomplete += 1
+            if on_capture is not None:
+                result = on_capture(path, det)
+                if inspect.isawaitable(result):
+                    await result
+
+    try:
+        async for block in driver:
+            if NO_VIBRATION_FLAG in block.flags:
+                raise ValueError("the source has no vibration channel: the trigger needs the "
+                                 "latch-release shock to find operations")
+            if isinstance(detector, TriggerSettings):
+                detector = TriggerDetector(detector, block.sample_rate)
+            stats.blocks += 1
+            stats.samples += block.travel.size
+            if expected is not None and block.first_sample_index > expected:
+                stats.gaps += 1
+                stats.lost_samples += block.first_sample_index - expected
+            expected = block.end_index
+            if CAPTURE_FLAG in block.flags:
+                # A DAQ-triggered capture stands alone: judge it whole, not as part of a stream.
+                found = detector.flush() + _detect_block(block, detector.settings)
+            else:
+                found = detector.feed(block)
+            await emit(found)
+            if max_captures is not None and stats.captures >= max_captures:
+                break
+        if isinstance(detector, TriggerDetector):
+            await emit(detector.flush())
+    finally:
+        close = getattr(driver, "aclose", None)
+        if close is not None:
+            await close()
+    return stats
+
+
+def _detect_block(block, settings: TriggerSettings) -> list[DetectedOperation]:
+    capture = Capture(travel=block.travel, sample_rate=block.sample_rate, vibration=block.vibration,
+                      first_sample_index=block.first_sample_index, source="daq-capture")
+    return detect_capture(capture, settings)
+
+
+__all__ = ["CaptureStats", "capture_name", "capture_stream", "detect_capture"]

@@ -1,0 +1,568 @@
+"""Operation trigger: finds openings and closings in an endless 2-channel stream and cuts them
+into captures with their valid window.
+
+Time is the sample index; there is no clock inside. The detector keeps a fixed-size ring buffer
+of the most recent samples (pre-trigger history plus the longest operation), so its memory does
+not depend on how long the stream runs. Work per block is vectorised with numpy.
+
+Detection: the latch-release shock (|vibration| ≥ ``shock_threshold_g``) arms a candidate; it
+becomes an operation when the smoothed travel moves more than ``motion_fraction`` of the stroke
+within ``confirm_s``. A shock without motion is rejected. The direction of travel decides
+opening (travel rises from closed) or closing. The valid window runs from the shock to the peak
+of the operation's own coordinate: for openings a cubic least-squares fit of the travel maximum,
+for closings the end of the cam rise, from a fit of the approach to the settled closed level.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from datetime import timedelta
+
+import numpy as np
+
+from drivers.interface import SampleBlock
+
+from .capture import Capture
+
+OPEN, CLOSE = "open", "close"
+INCOMPLETE = "incomplete"                 # samples missing (stream gap) or stream ended early
+SHORT_PRETRIGGER = "short_pretrigger"     # less than half the pre-trigger time was available
+NEXT_OPERATION = "next_operation"         # cut short because the next operation started
+END_NOT_REACHED = "end_not_reached"       # travel never reached its end position
+VIBRATION_CLIPPED = "vibration_clipped"   # the latch shock hit the accelerometer's full scale
+PEAK_FIT_FAILED = "peak_fit_failed"       # window end taken from the smoothed maximum instead
+
+
+@dataclass(frozen=True)
+class TriggerSettings:
+    """Trigger and capture settings (times in s, fractions of the stroke).
+
+    Attributes
+    ----------
+    stroke_rad : float
+        Travel between closed and open rest positions [rad].
+    shock_threshold_g : float
+        Latch-release shock detection level [g].
+    motion_fraction : float
+        Travel must move this fraction of the stroke to confirm an operation [-].
+    pre_trigger_s, post_s : float
+        Capture before the shock, and after the end position is reached and settled [s].
+    confirm_s : float
+        Longest delay from the shock to confirming motion [s].
+    max_operation_s : float
+        Longest shock-to-end-position time expected [s]; sets the ring buffer size.
+    baseline_s : float
+        Pre-shock travel used as the start level [s].
+    smoothing_s : float
+        Moving-average length for travel decisions [s].
+    shock_cluster_gap_s : float
+        Exceedances closer than this belong to one shock [s].
+    end_band_fraction : float
+        Travel within this fraction of the stroke from its far end counts as arriving [-].
+    settle_s, settle_fraction : float
+        Settled when the travel changes less than ``settle_fraction`` of the stroke over ``settle_s``.
+    peak_half_window_s : float
+        Half width of the opening peak fit [s].
+    closing_fit_fraction : float
+        The closing end fit uses the last part of the motion, this fraction of the stroke [-].
+    rearm_s : float
+        Shocks within this time after an operation's end belong to it [s].
+    vibration_full_scale_g, travel_full_scale_rad : float
+        Sensor ranges [g], [rad]; clipping detection and capture limits.
+    """
+
+    stroke_rad: float = 1.0
+    shock_threshold_g: float = 50.0
+    motion_fraction: float = 0.05
+    pre_trigger_s: float = 0.02
+    post_s: float = 0.03
+    confirm_s: float = 0.04
+    max_operation_s: float = 0.15
+    baseline_s: float = 0.005
+    smoothing_s: float = 0.25e-3
+    shock_cluster_gap_s: float = 2e-3
+    end_band_fraction: float = 0.1
+    settle_s: float = 0.005
+    settle_fraction: float = 0.01
+    peak_half_window_s: float = 0.006
+    closing_fit_fraction: float = 0.15
+    rearm_s: float = 0.005
+    vibration_full_scale_g: float = 1000.0
+    travel_full_scale_rad: float = np.pi
+
+    def __post_init__(self):
+        for name in ("stroke_rad", "shock_threshold_g", "pre_trigger_s", "confirm_s",
+                     "max_operation_s", "smoothing_s", "settle_s", "peak_half_window_s"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0):
+                raise ValueError(f"trigger setting {name} must be a positive number, got {value}")
+        if not 0 < self.motion_fraction < 1:
+            raise ValueError(f"motion_fraction must be between 0 and 1, got {self.motion_fraction}")
+
+    @classmethod
+    def from_breaker(cls, breaker, **overrides) -> "TriggerSettings":
+        """Settings from ``breaker.stroke`` and its ``[acquisition]`` table; keyword overrides win."""
+        acq = dict(getattr(breaker, "acquisition", None) or {})
+        values = {"stroke_rad": float(breaker.stroke)}
+        for key in ("shock_threshold_g", "motion_fraction", "pre_trigger_s", "post_s", "confirm_s",
+                    "max_operation_s", "vibration_full_scale_g", "travel_full_scale_rad"):
+            if key in acq:
+                values[key] = float(acq[key])
+        values.update(overrides)
+        return cls(**values)
+
+    @property
+    def horizon_s(self) -> float:
+        """Data needed after a shock before it is judged [s]."""
+        return self.max_operation_s + self.settle_s + self.post_s + self.peak_half_window_s
+
+
+@dataclass(frozen=True)
+class DetectedOperation:
+    """One detected operation and its capture.
+
+    Indices are stream sample indices; seconds are ``index / sample_rate`` (from index 0).
+    ``window_start_index`` is the latch shock (the fitter refines the onset itself);
+    ``window_end_index`` the peak of the operation's coordinate (fractional).
+    """
+
+    operation: str
+    shock_index: int
+    window_start_index: float
+    window_end_index: float
+    sample_rate: float
+    flags: tuple
+    capture: Capture
+
+    @property
+    def window_start_s(self) -> float:
+        return self.window_start_index / self.sample_rate
+
+    @property
+    def window_end_s(self) -> float:
+        return self.window_end_index / self.sample_rate
+
+    @property
+    def capture_window_s(self) -> tuple[float, float]:
+        """Valid window [s from the capture's first sample]."""
+        first = self.capture.first_sample_index
+        return ((self.window_start_index - first) / self.sample_rate,
+                (self.window_end_index - first) / self.sample_rate)
+
+    def to_dict(self, origin_index: int = 0) -> dict:
+        """JSON-able summary; times in s from sample ``origin_index``."""
+        fs = self.sample_rate
+        cap = self.capture
+        return {"operation": self.operation,
+                "t_start_s": (self.window_start_index - origin_index) / fs,
+                "t_end_s": (self.window_end_index - origin_index) / fs,
+                "flags": list(self.flags),
+                "shock_index": int(self.shock_index),
+                "capture_start_s": (cap.first_sample_index - origin_index) / fs,
+                "capture_end_s": (cap.first_sample_index + cap.travel.size - origin_index) / fs}
+
+
+class SampleRing:
+    """Fixed-capacity ring of the latest samples; ``valid`` is False for samples lost in a gap."""
+
+    def __init__(self, capacity: int):
+        self.capacity = int(capacity)
+        self.travel = np.zeros(self.capacity)
+        self.vibration = np.zeros(self.capacity, dtype=np.float32)
+        self.valid = np.zeros(self.capacity, dtype=bool)
+        self.end = 0    # stream index one past the newest sample
+        self.first = 0  # oldest stream index ever stored
+
+    def reset(self, index: int):
+        self.end = self.first = int(index)
+        self.valid[:] = False
+
+    @property
+    def start(self) -> int:
+        """Oldest stream index still held."""
+        return max(self.first, self.end - self.capacity)
+
+    def append(self, travel, vibration, valid: bool = True):
+        n = len(travel)
+        if n > self.capacity:  # only the newest samples fit
+            self.end += n - self.capacity
+            travel, vibration, n = travel[-self.capacity:], vibration[-self.capacity:], self.capacity
+        pos = self.end % self.capacity
+        head = min(n, self.capacity - pos)
+        for dst, src in ((self.travel, travel), (self.vibration, vibration)):
+            dst[pos:pos + head] = src[:head]
+            dst[:n - head] = src[head:]
+        self.valid[pos:pos + head] = valid
+        self.valid[:n - head] = valid
+        self.end += n
+
+    def fill_gap(self, n: int):
+        """Account for ``n`` lost samples: held travel, zero vibration, marked invalid."""
+        last = self.travel[(self.end - 1) % self.capacity] if self.end > self.first else 0.0
+        m = min(n, self.capacity)
+        self.end += n - m
+        self.append(np.full(m, last), np.zeros(m, dtype=np.float32), valid=False)
+
+    def _pieces(self, i0: int, i1: int):
+        """Ring slices covering stream indices [i0, i1) ∩ held samples, oldest first."""
+        i0, i1 = max(i0, self.start), min(i1, self.end)
+        if i1 <= i0:
+            return i0, []
+        p0 = i0 % self.capacity
+        n = i1 - i0
+        if p0 + n <= self.capacity:
+            return i0, [slice(p0, p0 + n)]
+        return i0, [slice(p0, self.capacity), slice(0, n - (self.capacity - p0))]
+
+    def get(self, i0: int, i1: int):
+        """Copies of travel, vibration and valid for stream indices [i0, i1) ∩ held samples."""
+        i0, pieces = self._pieces(i0, i1)
+        if not pieces:
+            return i0, np.empty(0), np.empty(0), np.empty(0, dtype=bool)
+        return (i0, np.concatenate([self.travel[p] for p in pieces]),
+                np.concatenate([self.vibration[p] for p in pieces]).astype(float),
+                np.concatenate([self.valid[p] for p in pieces]))
+
+    def first_exceedance(self, i0: int, threshold: float) -> int | None:
+        """Stream index of the first valid sample at or after ``i0`` with |vibration| ≥ threshold."""
+        i0, pieces = self._pieces(i0, self.end)
+        for p in pieces:
+            hits = np.flatnonzero((np.abs(self.vibration[p]) >= threshold) & self.valid[p])
+            if hits.size:
+                return i0 + int(hits[0])
+            i0 += p.stop - p.start
+        return None
+
+
+class TriggerDetector:
+    """Chunk-by-chunk operation detector with a bounded pre-trigger ring buffer.
+
+    ``feed(block)`` returns the operations completed by that block; ``flush()`` those still
+    pending at the end of the stream. Blocks must come in index order; a jump forward is a gap.
+    """
+
+    def __init__(self, settings: TriggerSettings, sample_rate: float):
+        if not (np.isfinite(sample_rate) and sample_rate > 0):
+            raise ValueError(f"sample rate must be a positive number of Hz, got {sample_rate}")
+        self.settings = settings
+        self.fs = float(sample_rate)
+        n = self._n
+        self.pre_n = n(settings.pre_trigger_s)
+        self.horizon_n = n(settings.horizon_s)
+        self.chunk_n = max(1024, self.horizon_n // 4)  # largest piece processed at once
+        self.scan_n = 4096  # small blocks are searched together: less overhead per sample
+        self.ring = SampleRing(self.pre_n + self.horizon_n + self.chunk_n + self.scan_n + 16)
+        self._expected: int | None = None
+        self._scan = 0
+        self._pending: int | None = None
+        self._gaps: list[tuple[int, int]] = []  # (first missing index, count) still in the ring
+
+    def _n(self, seconds: float) -> int:
+        return int(round(seconds * self.fs))
+
+    @property
+    def buffer_samples(self) -> int:
+        """Samples the detector holds: fixed by the settings, not by the stream length."""
+        return self.ring.capacity
+
+    # -- streaming ----------------------------------------------------------------------------
+
+    def feed(self, block: SampleBlock) -> list[DetectedOperation]:
+        """Process one block; returns operations whose captures are now complete."""
+        if abs(block.sample_rate - self.fs) > 1e-6 * self.fs:
+            raise ValueError(f"block sampled at {block.sample_rate} Hz, detector set for {self.fs} Hz")
+        out: list[DetectedOperation] = []
+        first = int(block.first_sample_index)
+        if self._expected is None or first < self._expected:
+            # Start, or a counter that went back (DAQ restart): nothing can be stitched across.
+            if self._expected is not None:
+                out += self.flush()
+            self.ring.reset(first)
+            self._scan, self._pending, self._gaps = first, None, []
+        elif first > self._expected:
+            self._gaps.append((self._expected, first - self._expected))
+            out += self._skip(first - self._expected)
+        travel = np.asarray(block.travel, dtype=float)
+        vibration = np.asarray(block.vibration, dtype=float)
+        for i in range(0, travel.size, self.chunk_n):
+            self.ring.append(travel[i:i + self.chunk_n], vibration[i:i + self.chunk_n])
+            if self._due():
+                out += self._process(final=False)
+        self._expected = first + travel.size
+        self._gaps = [g for g in self._gaps if g[0] + g[1] > self.ring.start]
+        return out
+
+    def _due(self) -> bool:
+        if self._pending is not None:
+            return self.ring.end >= self._pending + self.horizon_n
+        return self.ring.end - self._scan >= self.scan_n
+
+    def _skip(self, count: int) -> list[DetectedOperation]:
+        """Account for ``count`` lost samples. A pending candidate is judged once its horizon
+        is covered (the lost part marked invalid); beyond that the ring jumps at once."""
+        out = []
+        while count > 0:
+            m = count if self._pending is None else min(count, self.chunk_n)
+            self.ring.fill_gap(m)
+            count -= m
+            out += self._process(final=False)
+        return out
+
+    def flush(self) -> list[DetectedOperation]:
+        """Judge what is pending with the data there is (end of stream)."""
+        if self._expected is None:
+            return []
+        out = self._process(final=True)
+        self._pending = None
+        self._scan = self.ring.end
+        return out
+
+    def _process(self, *, final: bool) -> list[DetectedOperation]:
+        out = []
+        thr = self.settings.shock_threshold_g
+        while True:
+            if self._pending is None:
+                hit = self.ring.first_exceedance(self._scan, thr)
+                if hit is None:
+                    self._scan = self.ring.end
+                    return out
+                self._pending = self._scan = hit
+            if not final and self.ring.end < self._pending + self.horizon_n:
+                return out  # wait for the whole operation
+            detected, resume = self._judge(self._pending, final=final)
+            if detected is not None:
+                out.append(detected)
+            self._pending, self._scan = None, max(resume, self._pending + 1)
+
+    # -- judging one candidate shock ------------------------------------------------------------
+
+    def _judge(self, shock: int, *, final: bool):
+        """Decide whether the shock at stream index ``shock`` starts an operation.
+
+        Returns (DetectedOperation or None, stream index to resume the shock search from).
+        """
+        s = self.settings
+        n = self._n
+        seg0, T, V, M = self.ring.get(shock - self.pre_n, shock + self.horizon_n)
+        k = shock - seg0
+        S = _moving_average(T, max(1, n(s.smoothing_s)))
+        thr_motion = s.motion_fraction * s.stroke_rad
+        before = slice(max(0, k - n(s.baseline_s)), k)
+        baseline = float(np.median(T[before][M[before]])) if M[before].any() else float(T[k])
+        dev = S[k:k + n(s.confirm_s)] - baseline
+        moved = np.flatnonzero(np.abs(dev) > thr_motion)
+        hits = np.flatnonzero((np.abs(V[k:]) >= s.shock_threshold_g) & M[k:]) + k
+        if moved.size == 0:  # a lone shock: skip past its ringing
+            return None, seg0 + _cluster_end(hits, n(s.shock_cluster_gap_s))
+        c = k + int(moved[0])
+        direction = 1.0 if dev[moved[0]] > 0 else -1.0
+        operation = OPEN if direction > 0 else CLOSE
+        # The latch shock is the last shock cluster that starts before motion is confirmed.
+        pre = hits[hits < c]
+        breaks = np.flatnonzero(np.diff(pre) > n(s.shock_cluster_gap_s))
+        k = int(pre[breaks[-1] + 1]) if breaks.size else int(pre[0])
+        flags = []
+        arrived = np.flatnonzero(direction * (S[c:] - baseline) >= (1 - s.end_band_fraction) * s.stroke_rad)
+        if arrived.size == 0:
+            flags.append(END_NOT_REACHED)
+            end = float(c + np.argmax(direction * S[c:])) if S.size > c else float(c)
+            level = float(S[int(end)])
+        else:
+            r = c + int(arrived[0])
+            if direction > 0:
+                end, ok = self._opening_end(T, M, S, r)
+            else:
+                end, ok = self._closing_end(T, M, S, r)
+            if not ok:
+                flags.append(PEAK_FIT_FAILED)
+            level = float(S[min(int(round(end)), S.size - 1)])
+        stop, cut = self._capture_stop(S, int(np.ceil(end)), level, final)
+        if cut:
+            flags.append(NEXT_OPERATION)
+        start = max(0, k - self.pre_n)
+        if k < self.pre_n // 2:  # a little less than asked is normal for recorded files
+            flags.append(SHORT_PRETRIGGER)
+        if stop > T.size or (final and arrived.size == 0):
+            flags.append(INCOMPLETE)
+        stop = min(stop, T.size)
+        if not M[start:stop].all() and INCOMPLETE not in flags:
+            flags.append(INCOMPLETE)
+        if np.any(np.abs(V[k:k + n(0.005)]) >= 0.999 * s.vibration_full_scale_g):
+            flags.append(VIBRATION_CLIPPED)
+        capture = self._capture(seg0 + start, T[start:stop], V[start:stop], M[start:stop],
+                                operation, seg0 + k, seg0 + end, tuple(flags))
+        detected = DetectedOperation(operation, seg0 + k, float(seg0 + k), float(seg0 + end),
+                                     self.fs, tuple(flags), capture)
+        return detected, seg0 + int(np.ceil(end)) + n(s.rearm_s)
+
+    def _opening_end(self, T, M, S, r):
+        """Peak of the opening travel [fractional segment index] by a local cubic fit."""
+        s = self.settings
+        n = self._n
+        wide = _moving_average(T, max(1, n(1e-3)))
+        stop = min(S.size, r + n(s.max_operation_s))
+        # Stop the search where the travel falls back by the motion threshold (a new operation).
+        fall = np.maximum.accumulate(wide[r:stop]) - wide[r:stop]
+        back = np.flatnonzero(fall > s.motion_fraction * s.stroke_rad)
+        if back.size:
+            stop = r + int(back[0])
+        p0 = r + int(np.argmax(wide[r:stop]))
+        return _fit_peak(T, M, p0, n(s.peak_half_window_s))
+
+    def _closing_end(self, T, M, S, r):
+        """End of the cam rise [fractional segment index]: where the travel's approach to the
+        settled closed level ends, from a fit y = a·u² + b·u³ with u = max(t_e − t, 0)."""
+        s = self.settings
+        n = self._n
+        settle_n = n(s.settle_s)
+        tol = s.settle_fraction * s.stroke_rad
+        if S.size <= r + settle_n:
+            return float(r), False
+        change = np.abs(S[r:-settle_n] - S[r + settle_n:])
+        q = r + int(np.argmax(change < tol))
+        tail = slice(q, min(S.size, q + 2 * settle_n))
+        level = float(np.median(T[tail][M[tail]])) if M[tail].any() else float(S[q])
+        # Fit from where the travel was still closing_fit_fraction of the stroke above the level.
+        i0 = r - int(np.argmax(S[r::-1] - level >= s.closing_fit_fraction * s.stroke_rad))
+        i1 = min(T.size, q + 3 * settle_n)
+        keep = M[i0:i1]
+        t = np.arange(i0, i1, dtype=float)[keep]
+        y = T[i0:i1][keep] - level
+        if t.size < 16:
+            return float(q), False
+        # Coarse-to-fine search of t_e: 0.25 ms steps on every 4th sample, then finer.
+        step = max(4.0, round(0.25e-3 * self.fs))
+        grid = np.arange(i0, i1, step)
+        te = grid[np.argmin(_tangent_fit_sse(t[::4], y[::4], grid))]
+        for half, fine in ((step, step / 8), (step / 8, 0.5)):
+            grid = np.arange(te - half, te + half + 1e-9, fine)
+            te = grid[np.argmin(_tangent_fit_sse(t, y, grid))]
+        return float(te), True
+
+    def _capture_stop(self, S, end: int, level: float, final: bool):
+        """Segment index one past the capture's last sample, and whether the next operation cut it."""
+        s = self.settings
+        n = self._n
+        settle_n = n(s.settle_s)
+        tol = s.settle_fraction * s.stroke_rad
+        end = min(max(end, 0), S.size)
+        change = np.abs(S[end:S.size - settle_n] - S[end + settle_n:]) if S.size > end + settle_n else np.empty(0)
+        calm = np.flatnonzero(change < tol)
+        settled = end + int(calm[0]) if calm.size else end
+        stop = settled + n(s.post_s)
+        thr_motion = s.motion_fraction * s.stroke_rad
+        away = np.flatnonzero(np.abs(S[end + n(s.rearm_s):stop] - level) > thr_motion)
+        if away.size:  # the next operation has started: end where the travel left its rest level
+            leave = end + n(s.rearm_s) + int(away[0])
+            quiet = np.flatnonzero(np.abs(S[end:leave] - level) < 0.1 * thr_motion)
+            return end + (int(quiet[-1]) + 1 if quiet.size else leave - end), True
+        return stop, False
+
+    def _capture(self, first, T, V, M, operation, shock, end, flags) -> Capture:
+        travel = T.copy()
+        vibration = V.copy()
+        if not M.all():  # lost samples: interpolated travel, zero vibration, and flagged
+            good = np.flatnonzero(M)
+            if good.size:
+                travel[~M] = np.interp(np.flatnonzero(~M), good, T[good])
+            vibration[~M] = 0.0
+        s = self.settings
+        gaps = [(int(g0), int(cnt)) for g0, cnt in self._gaps
+                if g0 < first + T.size and g0 + cnt > first]
+        meta = {"operation": operation, "shock_index": int(shock),
+                "window_start_s": (shock - first) / self.fs, "window_end_s": (end - first) / self.fs,
+                "gaps": gaps}
+        return Capture(travel=travel, sample_rate=self.fs, vibration=vibration,
+                       source=f"trigger-{operation}", flags=flags, first_sample_index=int(first),
+                       travel_limits=(0.0, float(s.travel_full_scale_rad)),
+                       vibration_limits=(-float(s.vibration_full_scale_g), float(s.vibration_full_scale_g)),
+                       meta=meta)
+
+
+# -- numerical helpers ---------------------------------------------------------------------------
+
+def _moving_average(x: np.ndarray, w: int) -> np.ndarray:
+    """Centred moving average of length ``w``; the ends use the nearest full window."""
+    if w <= 1 or x.size < w:
+        return x.astype(float, copy=True)
+    c = np.concatenate(([0.0], np.cumsum(x, dtype=float)))
+    core = (c[w:] - c[:-w]) / w
+    left = (w - 1) // 2
+    return np.concatenate((np.full(left, core[0]), core, np.full(x.size - core.size - left, core[-1])))
+
+
+def _cluster_end(hits: np.ndarray, gap: int) -> int:
+    """Index one past the first cluster of exceedances (``hits`` sorted)."""
+    if hits.size == 0:
+        return 0
+    breaks = np.flatnonzero(np.diff(hits) > gap)
+    return int(hits[breaks[0]] if breaks.size else hits[-1]) + 1
+
+
+def _fit_peak(T, M, p0: int, half: int):
+    """Maximum of a cubic least-squares fit to the travel within ±``half`` samples of ``p0``,
+    re-centred once on the result. Returns (fractional index, fit succeeded)."""
+    ok = False
+    peak = float(p0)
+    for _ in range(3):
+        lo, hi = max(0, p0 - half), min(T.size, p0 + half + 1)
+        keep = M[lo:hi]
+        if keep.sum() < 16:
+            return peak, ok
+        x = (np.arange(lo, hi)[keep] - p0) / half
+        c = np.polynomial.polynomial.polyfit(x, T[lo:hi][keep], 3)
+        roots = np.roots([3 * c[3], 2 * c[2], c[1]]) if abs(c[3]) > 1e-12 else (
+            np.array([-c[1] / (2 * c[2])]) if c[2] else np.empty(0))
+        roots = [float(z.real) for z in np.atleast_1d(roots)
+                 if abs(z.imag) < 1e-12 and abs(z.real) <= 1.0 and 2 * c[2] + 6 * c[3] * z.real < 0]
+        if not roots:
+            return peak, ok
+        x_peak = min(roots, key=abs)
+        peak, ok = p0 + x_peak * half, True
+        if abs(x_peak * half) < 1.0:
+            break
+        p0 = int(round(peak))
+    return peak, ok
+
+
+def _tangent_fit_sse(t: np.ndarray, y: np.ndarray, candidates: np.ndarray) -> np.ndarray:
+    """Residual sum of squares of y ≈ a·u² + b·u³, u = max(t_e − t, 0), for each candidate t_e.
+
+    The travel arrives tangentially at the closed level (the cam rise ends with zero slope),
+    hence no constant or linear term.
+    """
+    u = np.maximum(candidates[:, None] - t[None, :], 0.0) / 128.0  # scaled for conditioning
+    u2 = u * u
+    u3 = u2 * u
+    s44, s45, s55 = (u2 * u2).sum(1), (u2 * u3).sum(1), (u3 * u3).sum(1)
+    r2, r3 = u2 @ y, u3 @ y
+    det = s44 * s55 - s45 * s45
+    safe = np.where(np.abs(det) > 1e-300, det, np.inf)
+    a = (r2 * s55 - r3 * s45) / safe
+    b = (s44 * r3 - s45 * r2) / safe
+    return float(y @ y) - (a * r2 + b * r3)
+
+
+def detect_capture(capture: Capture, settings: TriggerSettings, *,
+                   block_samples: int = 65_536) -> list[DetectedOperation]:
+    """Run the detector over a whole recording; times refer to its first sample."""
+    if capture.vibration is None:
+        raise ValueError(f"{capture.source or 'the recording'} has no vibration channel: "
+                         "the trigger needs the latch-release shock")
+    detector = TriggerDetector(settings, capture.sample_rate)
+    found = []
+    first = int(capture.first_sample_index)
+    for i in range(0, capture.travel.size, block_samples):
+        found += detector.feed(SampleBlock(first + i, capture.travel[i:i + block_samples],
+                                           capture.vibration[i:i + block_samples], capture.sample_rate))
+    found += detector.flush()
+    if capture.start_time is not None:
+        found = [_with_start_time(op, capture) for op in found]
+    return found
+
+
+def _with_start_time(op: DetectedOperation, recording: Capture) -> DetectedOperation:
+    offset = (op.capture.first_sample_index - recording.first_sample_index) / recording.sample_rate
+    cap = replace(op.capture, start_time=recording.start_time + timedelta(seconds=offset),
+                  source=recording.source or op.capture.source)
+    return replace(op, capture=cap)

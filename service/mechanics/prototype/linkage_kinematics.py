@@ -1,0 +1,28 @@
+"""Crank–rod linkage with an angle-dependent transmission ratio (``linkage_kinematics``).
+
+The contact side is driven through a crank whose transmission ratio u(θ) is largest where the
+crank is perpendicular to the rod (mid-stroke, θm = stroke/2) and falls towards the ends:
+
+    u(θ)² = j(θ) = 1 − λ·sin²(θ − θm)
+
+The equivalent inertia seen at the output shaft is J2·j(θ) and the contact-side (puffer) damping
+CO·j(θ). Lagrange's equation with a position-dependent inertia gives the extra term
+
+    j(θ)·θ'' + ½·j'(θ)·θ'² = Q(θ, θ')          j'(θ) = −λ·sin(2(θ − θm))
+
+so the kinetic energy ½·j(θ)·θ'² changes only by the work of the generalised force Q.
+λ = 0 is the reduced model's constant inertia.
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+
+@njit(cache=True, inline="always")
+def inertia_ratio(theta, lam, theta_mid):
+    """j(θ) [-] and j'(θ) [rad^-1] at output-shaft angle θ [rad] for strength λ [-]."""
+    s = math.sin(theta - theta_mid)
+    return 1.0 - lam * s * s, -lam * math.sin(2.0 * (theta - theta_mid))
