@@ -58,6 +58,7 @@ class DriverStats:
     retries: int = 0
     captures: int = 0
     connected: bool = False
+    abandoned: int = 0  # capture downloads given up after bounded retries (Modbus)
 
 
 @runtime_checkable
