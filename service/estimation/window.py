@@ -135,7 +135,7 @@ def prepare_window(capture: Capture, breaker: Breaker, operation: str) -> FitWin
         noise = float(np.median(np.abs(d - np.median(d))) * 1.4826 / np.sqrt(2))
         noise_source = "differences"
     noise = max(noise, 1e-7)
-    i_end, t_end = _peak(y, smooth, i_move, fs, operation, noise)
+    i_end, t_end = _peak(y, smooth, i_move, fs, operation, noise, stroke)
     if i_end >= y.size - 2:
         raise FitError(f"{src}: the capture ends before the {operation_word(operation)} reaches its "
                        "end position (truncated capture)")
@@ -180,16 +180,33 @@ def _find_shock(capture: Capture, i_move: int, fs: float, operation: str):
     return lo + int(hit[0]), True
 
 
-def _peak(y, smooth, i_move, fs, operation, noise):
+def _peak(y, smooth, i_move, fs, operation, noise, stroke):
     """Index and time [s] of the maximum of the operation coordinate."""
-    i_max = i_move + int(np.argmax(smooth[i_move:]))
+    n_edge = max(int(fs * 0.5e-3), 1)  # the smoothing is padded at the ends: keep out of them
+    search = smooth[i_move: max(y.size - n_edge, i_move + 1)]
+    i_max = i_move + int(np.argmax(search))
     if operation == "close":
         # The cam dwell holds θ2 at its maximum: the end is where the rise reaches the settled
-        # level, i.e. the first time the smoothed curve comes within noise of it.
-        level = np.median(y[i_max: i_max + max(int(0.005 * fs), 8)])
-        tol = max(3.0 * noise / np.sqrt(max(int(fs * 0.5e-3), 1)), 1e-4)
-        i_end = i_move + int(np.argmax(smooth[i_move:] >= level - tol))
+        # level, taken robustly from the tail after the motion (not from one noisy sample).
+        tol = max(3.0 * noise / np.sqrt(n_edge), 1e-4)
+        motion = y[i_move:]
+        level = float(np.median(motion[-max(motion.size // 4, 8):]))
+        if level < 0.8 * stroke:
+            raise FitError("the closing never reaches its end position within the capture "
+                           "(truncated capture or the breaker did not close)")
+        for _ in range(2):  # refine the plateau level on everything after the first arrival
+            reached = np.nonzero(search >= level - tol)[0]
+            if reached.size == 0:
+                raise FitError("cannot find where the closing reaches its end position")
+            level = float(np.median(y[i_move + int(reached[0]):]))
+        reached = np.nonzero(search >= level - tol)[0]
+        if reached.size == 0:
+            raise FitError("cannot find where the closing reaches its end position")
+        i_end = i_move + int(reached[0])
         return i_end, i_end / fs
+    if i_max >= y.size - n_edge - int(0.002 * fs):
+        raise FitError("the capture ends before the opening reaches its maximum travel "
+                       "(truncated capture)")
     half = int(0.006 * fs)
     lo, hi = max(i_max - half, i_move), min(i_max + half, y.size - 1)
     tt = (np.arange(lo, hi + 1) - i_max) / fs

@@ -1,0 +1,30 @@
+"""Small helpers every study shares: the reference breaker and a process pool."""
+
+from __future__ import annotations
+
+from concurrent.futures import ProcessPoolExecutor
+from functools import lru_cache
+from pathlib import Path
+
+REFERENCE_BREAKER = Path(__file__).resolve().parents[2] / "config" / "breakers" / "reference-252kV.toml"
+DEFAULT_WORKERS = 2
+
+
+@lru_cache(maxsize=4)
+def load_reference(path: str = str(REFERENCE_BREAKER)):
+    """The breaker the studies simulate (loaded once per process)."""
+    from ..breaker_file import load_breaker
+
+    return load_breaker(path)
+
+
+def pool_map(func, tasks, workers: int):
+    """``[func(t) for t in tasks]``, in ``workers`` processes when more than one.
+
+    Results come back in task order. Each worker compiles the numba kernels once (cached on disk).
+    """
+    tasks = list(tasks)
+    if workers <= 1 or len(tasks) <= 1:
+        return [func(t) for t in tasks]
+    with ProcessPoolExecutor(max_workers=min(workers, len(tasks))) as ex:
+        return list(ex.map(func, tasks, chunksize=1))

@@ -1,0 +1,252 @@
+"""The multi-condition dataset (paper Section 4.5): captures of one breaker at several spring
+settings, with run-to-run spread, fitted once and cached.
+
+One seam makes every capture: :func:`make_capture` ``(spec, condition, index)``. It builds the
+breaker of that condition and run (spring pre-compression step, friction and buffer-damping
+spread), simulates it on the virtual prototype (issue 6) with the chosen physical effects — or on
+the reduced model when ``spec.source == "reduced"`` — and records it like the DAQ would (noise,
+16-bit quantisation, latch shock). :func:`build_dataset` fits every capture in a process pool and
+keeps the estimates and the baselines' raw-travel features in an ``.npz`` so the classification
+and robustness studies do not refit.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..acquisition.synthetic import synthesize_capture
+from ..estimation import FitError, fit_capture
+from ..mechanics.breaker import CLOSING_PARAMETERS, OPENING_PARAMETERS, Breaker
+from .common import DEFAULT_WORKERS, load_reference, pool_map
+
+STEP_M = 3.5e-3            # pre-compression added per condition: two turns of the plate nut [m]
+FEATURE_WINDOW_S = 0.085   # raw-travel window the baselines see, from the first sample [s]
+FEATURE_POINTS = 256       # resampled length of that window [-]
+NOISE_RAD = 0.0015         # DAQ travel noise of the paper's sensor [rad]
+
+
+@dataclass(frozen=True)
+class DatasetSpec:
+    """Everything that decides the captures of one dataset (hashed into the cache name).
+
+    Attributes
+    ----------
+    operation : {"open", "close"}
+    conditions : int
+        Number of spring settings; condition k (0-based) adds ``k·STEP_M`` of pre-compression
+        (xO1 for openings, xC0 for closings).
+    per_condition : int
+        Captures per condition.
+    seed : int
+    source : {"prototype", "reduced"}
+        Simulator: the virtual prototype with effects, or the reduced model the fitter assumes.
+    effects_scale : float
+        Multiplier on the prototype's ``REALISTIC`` strengths [-] (each capped at ``UPPER``).
+    noise_rad : float
+        Travel noise standard deviation [rad].
+    friction_spread : float
+        Half-width of the uniform run-to-run spread of the resistance torque (TOf or TCf) [-].
+    damping_spread : float
+        Half-width of the uniform spread of the buffer damping cb (oil temperature) [-].
+    onset_jitter_s : float
+        Half-width of the uniform spread of the latch-shock-to-motion delay [s] (0: fixed).
+    """
+
+    operation: str = "open"
+    conditions: int = 6
+    per_condition: int = 40
+    seed: int = 2026
+    source: str = "prototype"
+    effects_scale: float = 0.5
+    noise_rad: float = NOISE_RAD
+    friction_spread: float = 0.02
+    damping_spread: float = 0.03
+    onset_jitter_s: float = 0.0
+
+    @property
+    def parameter_names(self) -> tuple:
+        return OPENING_PARAMETERS if self.operation == "open" else CLOSING_PARAMETERS
+
+    def key(self) -> str:
+        """Short hash of the spec and the prototype's realistic strengths (cache file name)."""
+        payload = dict(dataclasses.asdict(self), effects=dict(_effects(self).to_dict())
+                       if self.source == "prototype" else None)
+        return hashlib.sha1(json.dumps(payload, sort_keys=True).encode()).hexdigest()[:10]
+
+
+def _effects(spec: DatasetSpec):
+    from ..mechanics.prototype import OPERATIONS, REALISTIC, UPPER, Effects
+
+    # Strengths just below the prototype's hard limits stay valid for Effects' own checks.
+    return Effects(**{name: min(REALISTIC[name] * spec.effects_scale, UPPER[name])
+                      for name in REALISTIC if spec.operation in OPERATIONS[name]})
+
+
+def condition_breaker(base: Breaker, spec: DatasetSpec, condition: int,
+                      rng: np.random.Generator | None = None) -> Breaker:
+    """The breaker of ``condition`` (0-based), with this run's friction and damping when ``rng``.
+
+    Openings raise xO1 (so BO rises by kO·Δx·rO/J2 per step); closings raise xC0 (which enters
+    only the closing geometry, so AC, BC, CC stay unchanged).
+    """
+    changes = {}
+    if spec.operation == "open":
+        changes["xO1"] = base.xO1 + condition * STEP_M
+    else:
+        changes["xC0"] = base.xC0 + condition * STEP_M
+    if rng is not None:
+        fr = 1.0 + rng.uniform(-spec.friction_spread, spec.friction_spread)
+        cb = 1.0 + rng.uniform(-spec.damping_spread, spec.damping_spread)
+        changes["TOf" if spec.operation == "open" else "TCf"] = (
+            (base.TOf if spec.operation == "open" else base.TCf) * fr)
+        changes["cb"] = base.cb * cb
+    return dataclasses.replace(base, **changes)
+
+
+def bo_step(base: Breaker) -> float:
+    """Theoretical rise of BO per condition, kO·Δx·rO/J2 [s^-2]."""
+    return base.kO * STEP_M * base.rO / base.J2
+
+
+def model_parameters(breaker: Breaker, operation: str) -> dict:
+    """Design parameters the simulator takes for ``operation`` (closings carry DC = AO)."""
+    p = breaker.design_parameters()
+    names = OPENING_PARAMETERS if operation == "open" else CLOSING_PARAMETERS + ("DC",)
+    return {k: p[k] for k in names}
+
+
+def _with_end_of_travel(simulate):
+    """Give an overdamped opening an end of travel: the first instant after buffer engagement
+    at which the speed falls below 1 % of its peak. Without a rebound the prototype reports no
+    velocity zero (t_peak NaN), and ``synthesize_capture`` needs one to size the capture."""
+    def wrapped(params, t):
+        tr = simulate(params, t)
+        if np.isfinite(tr.t_peak) or not tr.success:
+            return tr
+        t_buf = tr.events.get("buffer_engaged", np.nan)
+        speed = np.abs(tr.omega)
+        slow = np.nonzero((tr.t > t_buf) & (speed < 0.01 * np.nanmax(speed)))[0]
+        return dataclasses.replace(tr, t_peak=float(tr.t[slow[0]])) if slow.size else tr
+    return wrapped
+
+
+def make_capture(spec: DatasetSpec, condition: int, index: int, *, base: Breaker | None = None):
+    """One recorded operation of ``condition`` (0-based), run ``index``: the seam of the studies.
+
+    Returns
+    -------
+    capture : Capture
+    truth : dict
+        The model parameters the simulator was given (its design values for this run).
+    breaker : Breaker
+        This condition's breaker as the operator knows it (pre-compression set, no spread),
+        which the fit uses.
+    """
+    base = base or load_reference()
+    rng = np.random.default_rng([spec.seed, condition, index, 0 if spec.operation == "open" else 1])
+    run = condition_breaker(base, spec, condition, rng)
+    params = model_parameters(run, spec.operation)
+    simulate = None
+    if spec.source == "prototype":
+        from ..mechanics.prototype import make_prototype_simulator
+
+        simulate = _with_end_of_travel(
+            make_prototype_simulator(run, _effects(spec), spec.operation, method="fast"))
+    elif spec.source != "reduced":
+        raise ValueError(f"source must be 'prototype' or 'reduced', got {spec.source!r}")
+    lead = 0.4e-3 + (rng.uniform(-spec.onset_jitter_s, spec.onset_jitter_s) if spec.onset_jitter_s else 0.0)
+    cap, _ = synthesize_capture(run, spec.operation, params, rng=rng, noise_rad=spec.noise_rad,
+                                simulate=simulate, shock_lead_s=lead)
+    return cap, params, condition_breaker(base, spec, condition)
+
+
+def travel_features(capture, *, window_s: float = FEATURE_WINDOW_S, points: int = FEATURE_POINTS):
+    """The baselines' input: raw travel [rad] over a fixed window from the first sample,
+    block-averaged to ``points`` values (captures shorter than the window are padded with
+    their last sample)."""
+    n = int(round(window_s * capture.sample_rate))
+    y = np.asarray(capture.travel, dtype=float)[:n]
+    if y.size < n:
+        y = np.concatenate([y, np.full(n - y.size, y[-1])])
+    edges = np.linspace(0, n, points + 1).astype(int)
+    return np.add.reduceat(y, edges[:-1]) / np.diff(edges)
+
+
+def _fit_task(task):
+    spec, condition, index = task
+    names = spec.parameter_names
+    cap, truth, breaker = make_capture(spec, condition, index)
+    features = travel_features(cap)
+    try:
+        dc = truth.get("DC") if spec.operation == "close" else None
+        res = fit_capture(cap, breaker, spec.operation, dc=dc, seed=1 + index)
+        est = [res.parameters[k] for k in names]
+        err = [res.stderr[k] for k in names]
+        rmse, msg = res.rmse_rad, ""
+    except FitError as exc:
+        est, err, rmse, msg = [np.nan] * len(names), [np.nan] * len(names), np.nan, str(exc)
+    return (condition, index, est, err, [truth[k] for k in names], rmse, features, msg)
+
+
+def build_dataset(spec: DatasetSpec, cache_dir: Path | None = None, *,
+                  workers: int = DEFAULT_WORKERS) -> dict:
+    """Fit every capture of ``spec`` (or load the cache ``<cache_dir>/dataset-<op>-<key>.npz``).
+
+    Returns
+    -------
+    dict of arrays
+        ``condition`` (n,), ``index`` (n,), ``estimates`` (n, p), ``stderr`` (n, p),
+        ``truth`` (n, p), ``rmse_rad`` (n,), ``features`` (n, FEATURE_POINTS) [rad],
+        ``errors`` (n,) fit-failure messages ('' when fitted), ``names`` (p,).
+        A failed fit leaves NaN estimates.
+    """
+    path = None
+    if cache_dir is not None:
+        path = Path(cache_dir) / f"dataset-{spec.operation}-{spec.key()}.npz"
+        if path.exists():
+            with np.load(path, allow_pickle=False) as z:
+                return {k: z[k] for k in z.files}
+    tasks = [(spec, c, i) for c in range(spec.conditions) for i in range(spec.per_condition)]
+    rows = pool_map(_fit_task, tasks, workers)
+    data = {
+        "condition": np.array([r[0] for r in rows], dtype=int),
+        "index": np.array([r[1] for r in rows], dtype=int),
+        "estimates": np.array([r[2] for r in rows], dtype=float),
+        "stderr": np.array([r[3] for r in rows], dtype=float),
+        "truth": np.array([r[4] for r in rows], dtype=float),
+        "rmse_rad": np.array([r[5] for r in rows], dtype=float),
+        "features": np.array([r[6] for r in rows], dtype=float),
+        "errors": np.array([r[7] for r in rows], dtype=str),
+        "names": np.array(spec.parameter_names, dtype=str),
+    }
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        np.savez_compressed(path, **data)
+    return data
+
+
+def snr_db(noise_rad: float, spec: DatasetSpec | None = None) -> float:
+    """Signal-to-noise ratio [dB] of a travel noise: 20·log10(RMS travel / noise), the RMS taken
+    over the valid interval of the noise-free nominal operation (condition 0)."""
+    return 20.0 * np.log10(signal_rms(spec or DatasetSpec()) / noise_rad)
+
+
+def noise_for_snr(snr: float, spec: DatasetSpec | None = None) -> float:
+    """Travel noise [rad] giving ``snr`` [dB] (inverse of :func:`snr_db`)."""
+    return signal_rms(spec or DatasetSpec()) * 10.0 ** (-snr / 20.0)
+
+
+def signal_rms(spec: DatasetSpec) -> float:
+    """RMS travel [rad] over the valid interval of the noise-free nominal operation."""
+    clean = dataclasses.replace(spec, noise_rad=0.0, friction_spread=0.0, damping_spread=0.0,
+                                onset_jitter_s=0.0)
+    cap, _, _ = make_capture(clean, 0, 0)
+    travel = np.asarray(cap.travel)
+    moving = travel[int(0.02 * cap.sample_rate):]  # after synthesize_capture's 20 ms idle lead
+    return float(np.sqrt(np.mean(moving**2)))
