@@ -19,6 +19,9 @@ COMMANDS = {
     "emulate": ("drivers.commands", "run a serial or Modbus DAQ emulator"),
     "serve": ("service.api.commands", "run the monitoring service"),
     "demo": ("service.api.commands", "run the embedded demo (emulated DAQ, SQLite)"),
+    "migrate": ("service.api.commands", "apply (or roll back) the database migrations"),
+    "key": ("service.api.commands", "create or revoke API keys"),
+    "worker": ("service.api.commands", "run a Celery fit worker (scaled-out shape)"),
     "diagnose": ("service.diagnosis.commands", "sim-to-real gap diagnosis of captures"),
 }
 

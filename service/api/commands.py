@@ -1,0 +1,177 @@
+"""``hvcb serve``, ``hvcb demo``, ``hvcb migrate``, ``hvcb key`` and ``hvcb worker``."""
+
+from __future__ import annotations
+
+import shutil
+import sys
+import threading
+import time
+
+
+def register(sub) -> None:
+    p = sub.add_parser("serve", help="run the monitoring service (REST API, fit workers)")
+    p.add_argument("--host", default=None)
+    p.add_argument("--port", type=int, default=None)
+    p.add_argument("--config", default=None, help="settings TOML (default config/default.toml)")
+    p.set_defaults(func=cmd_serve)
+
+    p = sub.add_parser("demo", help="embedded demo: SQLite, scripted DAQ history (healthy, then an oil leak), API")
+    p.add_argument("--host", default=None)
+    p.add_argument("--port", type=int, default=None)
+    p.add_argument("--config", default=None)
+    p.add_argument("--keep", action="store_true", help="keep the previous demo database instead of starting fresh")
+    p.add_argument("--interval", type=float, default=1.5, help="seconds between operations")
+    p.set_defaults(func=cmd_demo)
+
+    p = sub.add_parser("migrate", help="migrate the database (Alembic) up or down")
+    p.add_argument("revision", nargs="?", default="head")
+    p.add_argument("--down", action="store_true", help="downgrade to REVISION (default base)")
+    p.add_argument("--config", default=None)
+    p.set_defaults(func=cmd_migrate)
+
+    p = sub.add_parser("key", help="create an API key (prints it once)")
+    p.add_argument("name")
+    p.add_argument("--role", choices=("reader", "operator", "admin"), default="reader")
+    p.add_argument("--config", default=None)
+    p.set_defaults(func=cmd_key)
+
+    p = sub.add_parser("worker", help="run a Celery fit worker (needs HVCB_BROKER_URL and DATABASE_URL)")
+    p.add_argument("--concurrency", type=int, default=1)
+    p.add_argument("--config", default=None)
+    p.set_defaults(func=cmd_worker)
+
+
+def _settings(args, **overrides):
+    from pydantic import ValidationError
+
+    from service.cli import UserError
+    from service.settings import load_settings
+
+    overrides = {k: v for k, v in overrides.items() if v is not None}
+    try:
+        return load_settings(getattr(args, "config", None), **overrides)
+    except ValidationError as exc:
+        raise UserError("bad settings: " + "; ".join(f"{'.'.join(map(str, e['loc']))}: {e['msg']}"
+                                                     for e in exc.errors())) from None
+
+
+def _migrate(settings) -> None:
+    from service.storage.db import upgrade
+
+    settings.data_dir.mkdir(parents=True, exist_ok=True)
+    upgrade(settings.sqlalchemy_url)
+
+
+def _print_key(settings):
+    def show(key: str) -> None:
+        print(f"Generated admin API key (shown once; also in {settings.key_file}, mode 0600):\n  {key}", flush=True)
+    return show
+
+
+def cmd_migrate(args) -> int:
+    from service.storage.db import downgrade, upgrade
+
+    settings = _settings(args)
+    settings.data_dir.mkdir(parents=True, exist_ok=True)
+    if args.down:
+        downgrade(settings.sqlalchemy_url, "base" if args.revision == "head" else args.revision)
+    else:
+        upgrade(settings.sqlalchemy_url, args.revision)
+    print(f"database {settings.sqlalchemy_url.split('@')[-1]} at {args.revision if not args.down else 'down'}")
+    return 0
+
+
+def cmd_key(args) -> int:
+    from service.storage import crud
+    from service.storage.db import make_engine, session_factory
+
+    settings = _settings(args)
+    engine = make_engine(settings.sqlalchemy_url)
+    try:
+        with session_factory(engine)() as session, session.begin():
+            _, key = crud.create_api_key(session, name=args.name, role=args.role)
+    finally:
+        engine.dispose()
+    print(key)
+    return 0
+
+
+def cmd_serve(args) -> int:
+    import uvicorn
+
+    from service.api.app import create_app
+
+    settings = _settings(args, host=args.host, port=args.port)
+    _migrate(settings)
+    app = create_app(settings, on_key=_print_key(settings))
+    print(f"hvcb serving on http://{settings.host}:{settings.port} (API docs at /docs)", flush=True)
+    uvicorn.run(app, host=settings.host, port=settings.port, log_level="warning")
+    return 0
+
+
+def cmd_worker(args) -> int:
+    from service.cli import UserError
+    from service.workers.celery_backend import make_celery
+
+    settings = _settings(args)
+    if not settings.broker_url:
+        raise UserError("hvcb worker needs HVCB_BROKER_URL (Celery with Redis)")
+    app = make_celery(settings.broker_url, visibility_timeout_s=settings.celery_visibility_timeout_s)
+    app.worker_main(["worker", "--loglevel=INFO", f"--concurrency={args.concurrency}", "--pool=prefork"])
+    return 0
+
+
+def cmd_demo(args) -> int:
+    import uvicorn
+
+    from service.api.app import create_app
+    from service.api.demo import DemoScript, play
+    from service.storage import crud
+
+    base = _settings(args)
+    demo_dir = base.data_dir / "demo"
+    if demo_dir.exists() and not args.keep:
+        shutil.rmtree(demo_dir)
+    settings = _settings(args, host=args.host, port=args.port, data_dir=demo_dir, database_url="",
+                         broker_url="", executor="local")
+    _migrate(settings)
+    app = create_app(settings, on_key=_print_key(settings))
+    server = uvicorn.Server(uvicorn.Config(app, host=settings.host, port=settings.port, log_level="warning"))
+    stop = threading.Event()
+    url = f"http://{settings.host}:{settings.port}"
+
+    def feeder():
+        while not server.started and not stop.is_set():
+            time.sleep(0.1)
+        if stop.is_set():
+            return
+        monitor = app.state.monitor
+        with app.state.Session() as session:
+            row = crud.list_breakers(session)[0]
+            breaker_id, breaker = row.id, crud.breaker_model(row)
+
+        def report(n):
+            with app.state.Session() as session, session.begin():
+                crud.report_daq(session, breaker_id=breaker_id, connected=True, captures=n,
+                                detail="demo: scripted history")
+
+        key_file = settings.key_file
+        print(f"\nhvcb demo running at {url}  (API docs: {url}/docs)\n"
+              f"  KEY=$(cat {key_file})\n"
+              f"  curl -s -H \"X-API-Key: $KEY\" {url}/api/v1/breakers/{breaker_id}/health\n"
+              f"  curl -s -H \"X-API-Key: $KEY\" '{url}/api/v1/breakers/{breaker_id}/parameters?name=DO'\n"
+              f"  curl -s -H \"X-API-Key: $KEY\" '{url}/api/v1/alarms?state=active'\n"
+              f"The scripted history: healthy operations, then a buffer oil leak (DO falling). "
+              f"Fits appear within seconds; a DO alarm within about two minutes. Ctrl-C stops.\n", flush=True)
+        sent = play(monitor, breaker_id=breaker_id, breaker=breaker, stop=stop, report_daq=report,
+                    script=DemoScript(interval_s=args.interval))
+        print(f"demo history complete: {sent} operations sent", flush=True)
+
+    thread = threading.Thread(target=feeder, name="hvcb-demo-feeder", daemon=True)
+    thread.start()
+    try:
+        server.run()
+    finally:
+        stop.set()
+        thread.join(timeout=5)
+    return 0

@@ -1,0 +1,100 @@
+"""FastAPI dependencies: the session, the settings, the monitor and the caller's role."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass
+from typing import Annotated
+
+from fastapi import Depends, HTTPException, Request, Security
+from fastapi.security import APIKeyHeader
+from sqlalchemy.exc import DBAPIError, OperationalError
+from sqlalchemy.orm import Session
+
+from service.settings import Settings
+from service.storage import crud
+
+api_key_header = APIKeyHeader(name="X-API-Key", auto_error=False,
+                              description="API key; roles reader < operator < admin")
+
+
+def get_session(request: Request) -> Iterator[Session]:
+    with request.app.state.Session() as session:
+        yield session
+
+
+def get_settings(request: Request) -> Settings:
+    return request.app.state.settings
+
+
+def get_monitor(request: Request):
+    return request.app.state.monitor
+
+
+SessionDep = Annotated[Session, Depends(get_session)]
+SettingsDep = Annotated[Settings, Depends(get_settings)]
+MonitorDep = Annotated[object, Depends(get_monitor)]
+
+
+@dataclass(frozen=True)
+class Principal:
+    key_id: int
+    name: str
+    role: str
+
+
+class KeyCache:
+    """Verified key hashes for a few seconds, so SCADA polling does not hit the DB per request.
+    A revoked key stops working within ``ttl_s``."""
+
+    def __init__(self, ttl_s: float = 5.0):
+        self.ttl_s = ttl_s
+        self._entries: dict[str, tuple[float, Principal]] = {}
+
+    def get(self, digest: str) -> Principal | None:
+        hit = self._entries.get(digest)
+        if hit is None or hit[0] < time.monotonic():
+            return None
+        return hit[1]
+
+    def put(self, digest: str, principal: Principal) -> None:
+        if len(self._entries) > 10_000:
+            self._entries.clear()
+        self._entries[digest] = (time.monotonic() + self.ttl_s, principal)
+
+    def clear(self) -> None:
+        self._entries.clear()
+
+
+def require(role: str):
+    """Dependency: 401 without a valid key, 403 when the key's role is below ``role``."""
+    need = crud.ROLE_RANK[role]
+
+    def dependency(request: Request, key: Annotated[str | None, Security(api_key_header)]) -> Principal:
+        if not key:
+            raise HTTPException(401, "missing API key: send it in the X-API-Key header",
+                                headers={"WWW-Authenticate": "APIKey"})
+        cache: KeyCache = request.app.state.key_cache
+        digest = crud.hash_key(key)
+        principal = cache.get(digest)
+        if principal is None:
+            try:
+                with request.app.state.Session() as session:
+                    row = crud.find_api_key(session, key=key)
+            except (OperationalError, DBAPIError):
+                raise HTTPException(503, "database unavailable; try again shortly") from None
+            if row is None:
+                raise HTTPException(401, "unknown or revoked API key", headers={"WWW-Authenticate": "APIKey"})
+            principal = Principal(row.id, row.name, row.role)
+            cache.put(digest, principal)
+        if crud.ROLE_RANK[principal.role] < need:
+            raise HTTPException(403, f"this needs the {role} role; the key has {principal.role}")
+        return principal
+
+    return dependency
+
+
+ReaderDep = Annotated[Principal, Depends(require("reader"))]
+OperatorDep = Annotated[Principal, Depends(require("operator"))]
+AdminDep = Annotated[Principal, Depends(require("admin"))]

@@ -1,0 +1,387 @@
+"""Thin routes under /api/v1: validate, call a CRUD function, raise HTTPException."""
+
+from __future__ import annotations
+
+import io
+import tempfile
+import tomllib
+import zipfile
+from datetime import datetime, timedelta, timezone
+from pathlib import Path
+from typing import Annotated, Literal
+
+import numpy as np
+from fastapi import APIRouter, File, Form, HTTPException, Query, Request, UploadFile
+from sqlalchemy.exc import DBAPIError, IntegrityError, OperationalError
+
+from service.acquisition.capture import CaptureError
+from service.storage import crud
+from service.storage.models import utcnow
+
+from . import schemas as s
+from .deps import AdminDep, MonitorDep, OperatorDep, ReaderDep, SessionDep, SettingsDep
+
+router = APIRouter(prefix="/api/v1")
+
+NOT_FOUND = {404: {"model": s.Message}}
+AUTH = {401: {"model": s.Message}, 403: {"model": s.Message}}
+
+
+def _breaker_or_404(session, breaker_id: int):
+    row = crud.get_breaker(session, breaker_id=breaker_id)
+    if row is None:
+        raise HTTPException(404, f"no breaker {breaker_id}")
+    return row
+
+
+def _utc(t: datetime | None) -> datetime | None:
+    if t is None:
+        return None
+    return t.replace(tzinfo=timezone.utc) if t.tzinfo is None else t.astimezone(timezone.utc)
+
+
+# -- breakers ----------------------------------------------------------------------------------
+@router.get("/breakers", response_model=list[s.BreakerPublic], responses=AUTH, tags=["breakers"])
+def list_breakers(session: SessionDep, _: ReaderDep):
+    return crud.list_breakers(session)
+
+
+@router.get("/breakers/{breaker_id}", response_model=s.BreakerDetail, responses={**AUTH, **NOT_FOUND},
+            tags=["breakers"])
+def get_breaker(breaker_id: int, session: SessionDep, _: ReaderDep):
+    row = _breaker_or_404(session, breaker_id)
+    design = crud.breaker_model(row).design_parameters()
+    return s.BreakerDetail(**s.BreakerPublic.model_validate(row).model_dump(), breaker_file=row.breaker_file,
+                           cam_file_name=row.cam_file_name, design_parameters={k: float(v) for k, v in design.items()})
+
+
+@router.post("/breakers", response_model=s.BreakerPublic, status_code=201, responses={**AUTH, 409: {"model": s.Message},
+             422: {"model": s.Message}}, tags=["breakers"])
+def create_breaker(body: s.BreakerCreate, session: SessionDep, _: AdminDep):
+    from service.breaker_file import load_breaker
+
+    try:
+        data = tomllib.loads(body.breaker_file)
+        cam_name = Path(str(data["cam"]["profile"])).name
+        with tempfile.TemporaryDirectory() as tmp:
+            (Path(tmp) / cam_name).write_text(body.cam_table)
+            (Path(tmp) / "breaker.toml").write_text(body.breaker_file.replace(str(data["cam"]["profile"]), cam_name))
+            breaker = load_breaker(Path(tmp) / "breaker.toml")
+    except (tomllib.TOMLDecodeError, KeyError, TypeError, ValueError, OSError) as exc:
+        raise HTTPException(422, f"invalid breaker file: {exc}") from None
+    if crud.get_breaker_by_name(session, name=breaker.name) is not None:
+        raise HTTPException(409, f"a breaker named {breaker.name!r} exists")
+    try:
+        row = crud.upsert_breaker(session, name=breaker.name, tag=body.tag, breaker_file=body.breaker_file,
+                                  cam_file_name=cam_name, cam_table=body.cam_table)
+        session.commit()
+    except IntegrityError:
+        raise HTTPException(409, "a breaker with that name or tag exists") from None
+    return row
+
+
+@router.post("/breakers/{breaker_id}/baseline/reset", response_model=s.Message, responses={**AUTH, **NOT_FOUND},
+             tags=["breakers"])
+def reset_baseline(breaker_id: int, body: s.BaselineReset, session: SessionDep, settings: SettingsDep,
+                   who: AdminDep):
+    from service.jobs import reset_baseline as reset
+
+    _breaker_or_404(session, breaker_id)
+    cleared = reset(session, breaker_id=breaker_id, by=who.name, settings=settings.drift_settings)
+    session.commit()
+    return s.Message(detail=f"baseline reset ({body.reason}); the next {settings.drift_settings.baseline_n} "
+                            f"good fits form the new baseline; {cleared} alarm(s) cleared")
+
+
+def _latest(row, fit, kind: str) -> s.LatestFit | None:
+    if fit is None or not fit.parameters:
+        return None
+    op = fit.operation
+    names = s.OPENING if kind == "open" else s.CLOSING
+    params = {}
+    for name in names:
+        if name in fit.parameters:
+            ci = (fit.ci95 or {}).get(name)
+            params[name] = s.ParameterEstimate(value=fit.parameters[name], unit=s.UNITS[name],
+                                               ci95=list(ci) if ci else None, time=op.occurred_at,
+                                               operation_id=op.id, identifiable=fit.identifiable is not False)
+    return s.LatestFit(operation_id=op.id, time=op.occurred_at, rmse_rad=fit.rmse_rad, identifiable=fit.identifiable,
+                       parameters=params, characteristics=fit.characteristics)
+
+
+@router.get("/breakers/{breaker_id}/health", response_model=s.HealthPublic, responses={**AUTH, **NOT_FOUND},
+            tags=["breakers"])
+def breaker_health(breaker_id: int, session: SessionDep, settings: SettingsDep, _: ReaderDep):
+    from service.jobs import drift_status
+
+    row = _breaker_or_404(session, breaker_id)
+    opening = _latest(row, crud.latest_fit(session, breaker_id=breaker_id, kind="open"), "open")
+    closing = _latest(row, crud.latest_fit(session, breaker_id=breaker_id, kind="close"), "close")
+    alarms = crud.list_alarms(session, state="active", breaker_id=breaker_id)
+    status = drift_status(session, breaker_id=breaker_id, settings=settings.drift_settings)
+    if opening is None and closing is None:
+        status = "unknown" if not alarms else status
+    chars = {}
+    if opening and opening.characteristics:
+        chars["opening"] = opening.characteristics
+    if closing and closing.characteristics:
+        chars["closing"] = closing.characteristics
+    return s.HealthPublic(breaker_id=breaker_id, status=status, opening=opening, closing=closing,
+                          characteristics=chars, active_alarms=[s.AlarmPublic.model_validate(a) for a in alarms])
+
+
+@router.get("/breakers/{breaker_id}/parameters", response_model=s.TrendPublic, responses={**AUTH, **NOT_FOUND},
+            tags=["breakers"])
+def parameter_trend(breaker_id: int, session: SessionDep, _: ReaderDep,
+                    name: Annotated[s.ParameterName, Query(description="parameter, e.g. DO")],
+                    since: Annotated[datetime | None, Query(description="ISO-8601; UTC when no zone")] = None,
+                    limit: Annotated[int, Query(ge=1, le=20000)] = 5000):
+    _breaker_or_404(session, breaker_id)
+    rows = crud.parameter_trend(session, breaker_id=breaker_id, name=name, since=_utc(since), limit=limit)
+    points = [s.TrendPoint(time=r.occurred_at, value=r.value, operation_id=r.operation_id, identifiable=r.identifiable,
+                           ci95=[r.ci_low, r.ci_high] if r.ci_low is not None and r.ci_high is not None else None)
+              for r in rows]
+    return s.TrendPublic(breaker_id=breaker_id, name=name, unit=s.UNITS[name], points=points)
+
+
+@router.get("/breakers/{breaker_id}/operations", response_model=list[s.OperationPublic],
+            responses={**AUTH, **NOT_FOUND}, tags=["operations"])
+def list_operations(breaker_id: int, session: SessionDep, _: ReaderDep,
+                    limit: Annotated[int, Query(ge=1, le=1000)] = 50):
+    _breaker_or_404(session, breaker_id)
+    return crud.list_operations(session, breaker_id=breaker_id, limit=limit)
+
+
+@router.get("/operations/{operation_id}", response_model=s.OperationPublic, responses={**AUTH, **NOT_FOUND},
+            tags=["operations"])
+def get_operation(operation_id: int, session: SessionDep, _: ReaderDep):
+    op = crud.get_operation(session, operation_id=operation_id)
+    if op is None:
+        raise HTTPException(404, f"no operation {operation_id}")
+    return op
+
+
+@router.get("/operations/{operation_id}/curve", response_model=s.CurvePublic,
+            responses={**AUTH, **NOT_FOUND, 410: {"model": s.Message}}, tags=["operations"])
+def get_curve(operation_id: int, session: SessionDep, _: ReaderDep,
+              points: Annotated[int, Query(ge=10, le=5000, description="samples returned")] = 1000):
+    from service.acquisition.capture_file import read_capture
+
+    op = crud.get_operation(session, operation_id=operation_id)
+    if op is None:
+        raise HTTPException(404, f"no operation {operation_id}")
+    try:
+        cap = read_capture(op.capture_path)
+    except CaptureError as exc:
+        raise HTTPException(410, f"the capture file is no longer readable: {exc}") from None
+    idx = np.unique(np.linspace(0, cap.travel.size - 1, min(points, cap.travel.size)).astype(int))
+    t, measured = cap.t[idx], cap.travel[idx]
+    fitted = residual = window = None
+    fit = op.fit
+    if fit is not None and fit.status == "done" and fit.curve:
+        ft, fv = np.asarray(fit.curve["t"]), np.asarray(fit.curve["fitted"])
+        inside = (t >= ft[0]) & (t <= ft[-1])
+        f = np.where(inside, np.interp(t, ft, fv), np.nan)
+        fitted = [None if not np.isfinite(v) else round(float(v), 7) for v in f]
+        residual = [None if not np.isfinite(v) else round(float(v), 7) for v in measured - f]
+        if fit.window_start_s is not None:
+            window = [fit.window_start_s, fit.window_end_s]
+    return s.CurvePublic(operation_id=op.id, kind=op.kind, t_s=[round(float(v), 9) for v in t],
+                         measured_rad=[round(float(v), 7) for v in measured], fitted_rad=fitted,
+                         residual_rad=residual, window_s=window)
+
+
+# -- uploads -----------------------------------------------------------------------------------
+async def _read_capped(upload: UploadFile, budget: int) -> bytes:
+    data = await upload.read(budget + 1)
+    if len(data) > budget:
+        raise HTTPException(413, f"upload larger than the {budget} byte limit")
+    return data
+
+
+def _pair_from_zip(blob: bytes, cap: int) -> tuple[bytes, bytes, str]:
+    try:
+        zf = zipfile.ZipFile(io.BytesIO(blob))
+        infos = [i for i in zf.infolist() if not i.is_dir()]
+    except (zipfile.BadZipFile, ValueError, OSError) as exc:
+        raise HTTPException(422, f"not a readable zip archive: {exc}") from None
+    if sum(i.file_size for i in infos) > cap:
+        raise HTTPException(413, f"the archive expands beyond the {cap} byte limit")
+    cfgs = [i for i in infos if i.filename.lower().endswith(".cfg")]
+    if len(cfgs) != 1:
+        raise HTTPException(422, f"the zip must hold exactly one .cfg file, found {len(cfgs)}")
+    stem = cfgs[0].filename[:-4]
+    dats = [i for i in infos if i.filename[:-4] == stem and i.filename.lower().endswith(".dat")]
+    if len(dats) != 1:
+        raise HTTPException(422, f"the zip holds no .dat file matching {cfgs[0].filename}")
+    try:
+        return zf.read(cfgs[0]), zf.read(dats[0]), cfgs[0].filename
+    except (zipfile.BadZipFile, RuntimeError, OSError, ValueError) as exc:
+        raise HTTPException(422, f"cannot extract the archive: {exc}") from None
+
+
+@router.post("/breakers/{breaker_id}/captures", response_model=s.UploadAccepted, status_code=202,
+             responses={**AUTH, **NOT_FOUND, 413: {"model": s.Message}, 422: {"model": s.Message}},
+             tags=["operations"])
+async def upload_capture(breaker_id: int, request: Request, session: SessionDep, settings: SettingsDep,
+                         monitor: MonitorDep, _: OperatorDep,
+                         files: Annotated[list[UploadFile], File(description="a .cfg and its .dat, or one .zip")],
+                         operation: Annotated[Literal["open", "close"] | None,
+                                              Form(description="inferred from the travel when omitted")] = None):
+    from service.acquisition.capture_file import load_comtrade_bytes
+
+    cap_bytes = settings.max_upload_bytes
+    declared = request.headers.get("content-length")
+    if declared and declared.isdigit() and int(declared) > cap_bytes + 64 * 1024:
+        raise HTTPException(413, f"upload larger than the {cap_bytes} byte limit")
+    row = _breaker_or_404(session, breaker_id)
+    blobs, budget = {}, cap_bytes
+    for f in files:
+        data = await _read_capped(f, budget)
+        budget -= len(data)
+        blobs[(f.filename or "").lower()] = data
+    names = list(blobs)
+    if len(names) == 1 and names[0].endswith(".zip"):
+        cfg, dat, name = _pair_from_zip(blobs[names[0]], cap_bytes)
+    else:
+        cfg_names = [n for n in names if n.endswith(".cfg")]
+        dat_names = [n for n in names if n.endswith(".dat")]
+        if len(cfg_names) != 1 or len(dat_names) != 1 or len(names) != 2:
+            raise HTTPException(422, "send a COMTRADE .cfg and its .dat (two files), or one .zip holding them")
+        cfg, dat, name = blobs[cfg_names[0]], blobs[dat_names[0]], cfg_names[0]
+    try:
+        cfg_text = cfg.decode("utf-8")
+    except UnicodeDecodeError:
+        try:
+            cfg_text = cfg.decode("latin-1")
+        except UnicodeDecodeError:
+            raise HTTPException(422, "the .cfg file is not text") from None
+    breaker = crud.breaker_model(row)
+    try:
+        capture = load_comtrade_bytes(cfg_text, dat, source=f"upload:{name}",
+                                      travel_channel=breaker.channels.get("travel", "travel"),
+                                      vibration_channel=breaker.channels.get("vibration", "vibration"))
+        if capture.travel.size < 16:
+            raise CaptureError("the record holds fewer than 16 samples")
+        from service.monitor import infer_operation
+
+        kind = operation or infer_operation(capture)
+    except CaptureError as exc:
+        raise HTTPException(422, str(exc)) from None
+    except HTTPException:
+        raise
+    except Exception as exc:  # the COMTRADE reader raises many types on malformed input
+        raise HTTPException(422, f"malformed COMTRADE upload: {type(exc).__name__}: {exc}") from None
+    session.close()
+    result = monitor.ingest(capture, breaker_id=breaker_id, operation=kind, source="upload")
+    return s.UploadAccepted(operation_id=result.operation_id, capture_key=result.capture_key, operation=kind,
+                            status="spooled" if result.spooled else "queued")
+
+
+# -- alarms ------------------------------------------------------------------------------------
+@router.get("/alarms", response_model=list[s.AlarmPublic], responses=AUTH, tags=["alarms"])
+def list_alarms(session: SessionDep, _: ReaderDep,
+                state: Annotated[Literal["active", "raised", "acknowledged", "cleared", "all"], Query()] = "active",
+                breaker_id: int | None = None):
+    return crud.list_alarms(session, state=state, breaker_id=breaker_id)
+
+
+@router.post("/alarms/{alarm_id}/ack", response_model=s.AlarmPublic, responses={**AUTH, **NOT_FOUND,
+             409: {"model": s.Message}}, tags=["alarms"])
+def acknowledge_alarm(alarm_id: int, session: SessionDep, settings: SettingsDep, who: OperatorDep,
+                      body: s.AlarmAck | None = None):
+    from service.jobs import acknowledge_drift
+
+    alarm = crud.get_alarm(session, alarm_id=alarm_id)
+    if alarm is None:
+        raise HTTPException(404, f"no alarm {alarm_id}")
+    if alarm.state == "cleared":
+        raise HTTPException(409, f"alarm {alarm_id} is already cleared")
+    if alarm.state == "raised":
+        crud.acknowledge_alarm(session, alarm=alarm, by=who.name, comment=body.comment if body else None)
+        acknowledge_drift(session, alarm=alarm, by=who.name, settings=settings.drift_settings)
+        session.commit()
+    return alarm
+
+
+# -- SCADA -------------------------------------------------------------------------------------
+SCADA_CACHE_S = 1.0  # pollers ask every few seconds; fits land every few minutes
+
+
+@router.get("/scada/points", response_model=list[s.ScadaPoint], responses=AUTH, tags=["scada"])
+def scada_points(request: Request, settings: SettingsDep, _: ReaderDep):
+    """Flat point list for SCADA pollers (computed at most once per second)."""
+    import time as _time
+
+    from fastapi.responses import Response
+
+    cached = getattr(request.app.state, "scada_cache", None)
+    now_m = _time.monotonic()
+    if cached is None or cached[0] < now_m:
+        with request.app.state.Session() as session:
+            points = _scada_points(session, settings)
+        body = s.ScadaPointList(points).model_dump_json().encode()
+        cached = (now_m + SCADA_CACHE_S, body)
+        request.app.state.scada_cache = cached
+    return Response(cached[1], media_type="application/json")
+
+
+def _scada_points(session, settings) -> list[s.ScadaPoint]:
+    now = utcnow()
+    daq = {d.breaker_id: d for d in crud.daq_statuses(session)}
+    stale = timedelta(seconds=settings.stale_after_s)
+    daq_timeout = timedelta(seconds=settings.daq_timeout_s)
+    points: list[s.ScadaPoint] = []
+    for row in crud.list_breakers(session):
+        d = daq.get(row.id)
+        daq_down = d is not None and (not d.connected or d.last_seen is None or now - d.last_seen > daq_timeout)
+        alarms = crud.list_alarms(session, state="active", breaker_id=row.id)
+        level = 2 if any(a.level == "alarm" for a in alarms) else 1 if alarms else 0
+        for kind, section, names in (("open", "opening", s.OPENING), ("close", "closing", s.CLOSING)):
+            fit = crud.latest_fit(session, breaker_id=row.id, kind=kind)
+            for name in names:
+                value = ts = None
+                quality = "bad"
+                if fit is not None and fit.parameters and name in fit.parameters:
+                    value, ts = float(fit.parameters[name]), fit.operation.occurred_at
+                    if daq_down or now - ts > stale:
+                        quality = "bad"
+                    elif fit.identifiable is False:
+                        quality = "uncertain"
+                    else:
+                        quality = "good"
+                points.append(s.ScadaPoint(point=f"{row.tag}.{section}.{name}", value=value, unit=s.UNITS[name],
+                                           timestamp=ts, quality=quality))
+        points.append(s.ScadaPoint(point=f"{row.tag}.alarm_level", value=float(level), unit="1", timestamp=now,
+                                   quality="good"))
+        if d is not None:
+            points.append(s.ScadaPoint(point=f"{row.tag}.daq.connected", value=0.0 if daq_down else 1.0, unit="1",
+                                       timestamp=d.last_seen, quality="good"))
+    return points
+
+
+# -- keys --------------------------------------------------------------------------------------
+@router.get("/keys", response_model=list[s.ApiKeyPublic], responses=AUTH, tags=["keys"])
+def list_keys(session: SessionDep, _: AdminDep):
+    return crud.list_api_keys(session)
+
+
+@router.post("/keys", response_model=s.ApiKeyCreated, status_code=201, responses=AUTH, tags=["keys"])
+def create_key(body: s.ApiKeyCreate, session: SessionDep, _: AdminDep):
+    row, key = crud.create_api_key(session, name=body.name, role=body.role)
+    session.commit()
+    return s.ApiKeyCreated(**s.ApiKeyPublic.model_validate(row).model_dump(), key=key)
+
+
+@router.delete("/keys/{key_id}", response_model=s.ApiKeyPublic, responses={**AUTH, **NOT_FOUND}, tags=["keys"])
+def revoke_key(key_id: int, request: Request, session: SessionDep, _: AdminDep):
+    from service.storage.models import ApiKeyRow
+
+    row = session.get(ApiKeyRow, key_id)
+    if row is None:
+        raise HTTPException(404, f"no key {key_id}")
+    if row.revoked_at is None:
+        row.revoked_at = utcnow()
+        session.commit()
+    request.app.state.key_cache.clear()
+    return row

@@ -1,0 +1,296 @@
+"""The fit job and what follows it: capture file → fit → result row → drift alarms.
+
+``run_fit_job`` runs in a worker process (local pool or Celery). It is idempotent: keyed by
+the operation id, it claims the fit row, and the result is stored by a conditional update that
+only one attempt can win, so a job run twice lands its result exactly once.
+"""
+
+from __future__ import annotations
+
+import importlib
+import logging
+import os
+import socket
+import time
+from dataclasses import asdict, dataclass
+from datetime import datetime
+
+import numpy as np
+from sqlalchemy import select
+
+from service.storage import crud
+from service.storage.db import cached_engine, session_factory
+from service.storage.models import AlarmRow, BreakerRow, DriftStateRow, FitRow, OperationRow, utcnow
+from service.storage.spool import capture_digest, capture_files
+
+log = logging.getLogger("hvcb.jobs")
+
+
+@dataclass(frozen=True)
+class JobOptions:
+    """What a worker needs to run a fit job; picklable, built from the settings."""
+
+    database_url: str
+    fit_function: str = "service.estimation:fit_capture"
+    fit_seed: int = 1
+    max_attempts: int = 3
+    curve_points: int = 2000
+    alarms: dict | None = None
+
+    @classmethod
+    def from_settings(cls, settings) -> "JobOptions":
+        return cls(database_url=settings.sqlalchemy_url, fit_function=settings.fit_function,
+                   fit_seed=settings.fit_seed, max_attempts=settings.max_attempts,
+                   curve_points=settings.curve_points, alarms=dict(settings.alarms))
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def _resolve(dotted: str):
+    module, _, name = dotted.partition(":")
+    return getattr(importlib.import_module(module), name)
+
+
+def _worker_name() -> str:
+    return f"{socket.gethostname()}:{os.getpid()}"
+
+
+def run_fit_job(operation_id: int, options: JobOptions | dict) -> dict:
+    """Fit one operation's capture and store the result (or the reason it failed).
+
+    Returns ``{"operation_id", "status", "landed", "runtime_s"}``; ``status`` is ``skipped``
+    when another attempt already finished the job.
+    """
+    if isinstance(options, dict):
+        options = JobOptions(**options)
+    Session = session_factory(cached_engine(options.database_url))
+    with Session() as session, session.begin():
+        fit = crud.claim_fit(session, operation_id=operation_id, worker=_worker_name())
+        if fit is None:
+            return {"operation_id": operation_id, "status": "skipped", "landed": False, "runtime_s": 0.0}
+        if fit.attempts > options.max_attempts:
+            crud.store_fit_failure(session, operation_id=operation_id,
+                                   reason=f"the fit was started {fit.attempts - 1} times and its worker "
+                                          f"stopped each time (crash or out of memory); giving up")
+            return {"operation_id": operation_id, "status": "failed", "landed": True, "runtime_s": 0.0}
+        op = session.get(OperationRow, operation_id)
+        breaker_row = session.get(BreakerRow, op.breaker_id)
+        dc, dc_source = None, None
+        breaker = crud.breaker_model(breaker_row)
+        if op.kind == "close":
+            opening = crud.latest_opening_fit(session, breaker_id=op.breaker_id, before=op.occurred_at)
+            if opening is not None:
+                dc, dc_source = float(opening.parameters["AO"]), f"opening fit of operation {opening.operation_id}"
+            else:
+                dc, dc_source = float(breaker.design_parameters()["DC"]), "breaker file design value"
+        capture_path, expected_sha = op.capture_path, op.capture_sha256
+        kind = op.kind
+    t0 = time.perf_counter()
+    try:
+        result_dict, curve = _fit(capture_path, expected_sha, breaker, kind, dc, options)
+        if dc is not None:
+            result_dict["dc_used"], result_dict["dc_source"] = dc, dc_source
+        failure = None
+    except Exception as exc:  # every failure is stored with its reason; the queue moves on
+        failure = _reason(exc)
+    runtime = time.perf_counter() - t0
+    with Session() as session, session.begin():
+        if failure is not None:
+            landed = crud.store_fit_failure(session, operation_id=operation_id, reason=failure)
+            return {"operation_id": operation_id, "status": "failed", "landed": landed, "runtime_s": runtime}
+        landed = crud.store_fit_result(session, operation_id=operation_id, result=result_dict, curve=curve)
+        if landed:
+            update_drift(session, breaker_id=breaker_row.id, options=options)
+    return {"operation_id": operation_id, "status": "done", "landed": landed, "runtime_s": runtime}
+
+
+def _reason(exc: Exception) -> str:
+    from service.acquisition.capture import CaptureError
+
+    text = str(exc) or type(exc).__name__
+    if isinstance(exc, CaptureError):
+        return f"capture unusable: {text}"
+    if type(exc).__name__ == "FitError":
+        return text
+    if isinstance(exc, (ImportError, AttributeError)) and "estimation" in text:
+        return f"the estimator is not available: {text}"
+    return f"{type(exc).__name__}: {text}"
+
+
+def _fit(capture_path: str, expected_sha: str, breaker, kind: str, dc, options: JobOptions):
+    from service.acquisition.capture import CaptureError
+    from service.acquisition.capture_file import read_capture
+
+    files = capture_files(capture_path)
+    missing = [str(p) for p in files if not p.exists()]
+    if missing:
+        raise CaptureError(f"capture file missing: {', '.join(missing)}")
+    if capture_digest(files) != expected_sha:
+        raise CaptureError("capture file checksum does not match the one recorded at capture time "
+                           "(file changed or corrupted on disk)")
+    capture = read_capture(capture_path, travel_channel=breaker.channels.get("travel", "travel"),
+                           vibration_channel=breaker.channels.get("vibration", "vibration"))
+    fit_capture = _resolve(options.fit_function)
+    result = fit_capture(capture, breaker, kind, dc=dc, seed=options.fit_seed)
+    out = result.to_dict() if hasattr(result, "to_dict") else dict(result)
+    curve = None
+    if hasattr(result, "fitted_travel"):
+        fitted = np.asarray(result.fitted_travel(capture, breaker), dtype=float)
+        idx = np.unique(np.linspace(0, fitted.size - 1, min(options.curve_points, fitted.size)).astype(int))
+        curve = {"t": [round(float(v), 9) for v in capture.t[idx]],
+                 "fitted": [round(float(v), 7) for v in fitted[idx]]}
+    return _jsonable(out), curve
+
+
+def _jsonable(obj):
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, np.generic):
+        obj = obj.item()
+    if isinstance(obj, float) and not np.isfinite(obj):
+        return None
+    if isinstance(obj, datetime):
+        return obj.isoformat()
+    return obj
+
+
+# -- drift alarms ------------------------------------------------------------------------------
+def _drift_state(session, breaker_id: int, parameter: str, settings):
+    from service.alarms.drift import DriftState
+
+    row = session.get(DriftStateRow, (breaker_id, parameter))
+    if row is None or not row.state:
+        return row, DriftState.new(parameter, settings)
+    return row, DriftState.from_dict(row.state)
+
+
+def _save_state(session, row, breaker_id: int, state) -> None:
+    if row is None:
+        row = DriftStateRow(breaker_id=breaker_id, parameter=state.parameter)
+        session.add(row)
+    row.state = state.to_dict()
+    row.updated_at = utcnow()
+
+
+def update_drift(session, *, breaker_id: int, options: JobOptions | None = None, settings=None) -> list:
+    """Feed the breaker's new good fits to the drift detector and store the alarm events.
+
+    Runs under a lock on the breaker row (PostgreSQL) or the database write lock (SQLite), so
+    two workers finishing fits of one breaker at once cannot double-count. A fit that finishes
+    after a newer one of the same breaker was already fed is not fed (the detector needs
+    operation order); with one worker per breaker this does not happen.
+    """
+    from service.alarms import drift
+    from service.alarms.settings import DriftSettings
+
+    settings = settings or DriftSettings.from_mapping((options.alarms if options else None) or {})
+    session.execute(select(BreakerRow.id).where(BreakerRow.id == breaker_id).with_for_update())
+    breaker = session.get(BreakerRow, breaker_id)
+    all_events = []
+    for parameter in settings.watched:
+        row, state = _drift_state(session, breaker_id, parameter, settings)
+        since = state.last_time or breaker.baseline_reset_at
+        history = crud.good_parameter_history(session, breaker_id=breaker_id, name=parameter, since=since)
+        for pv in history:
+            if state.last_time is not None and (pv.occurred_at, pv.operation_id) <= (state.last_time, state.last_operation_id or 0):
+                continue
+            obs = drift.FitObservation(operation_id=pv.operation_id, time=pv.occurred_at, value=pv.value,
+                                       ci95=(pv.ci_low, pv.ci_high) if pv.ci_low is not None and pv.ci_high is not None else None)
+            state, events = drift.update(state, obs, settings)
+            for ev in events:
+                apply_alarm_event(session, breaker_id=breaker_id, event=ev)
+            all_events.extend(events)
+        _save_state(session, row, breaker_id, state)
+    session.flush()
+    return all_events
+
+
+def apply_alarm_event(session, *, breaker_id: int, event) -> AlarmRow | None:
+    """Store one ``AlarmEvent`` of the drift detector in the alarms table."""
+    active = crud.active_alarm(session, breaker_id=breaker_id, parameter=event.parameter)
+    now = utcnow()
+    if event.kind == "raised":
+        alarm = AlarmRow(breaker_id=breaker_id, parameter=event.parameter, level=event.level, state="raised",
+                         episode=event.episode, message=_message(event), evidence=_jsonable(event.evidence),
+                         operation_id=event.operation_id if isinstance(event.operation_id, int) else None,
+                         raised_at=now, updated_at=now)
+        session.add(alarm)
+        session.flush()
+        return alarm
+    if active is None:
+        return None
+    if event.kind == "escalated":
+        active.level, active.state = event.level, "raised"
+        active.acknowledged_at = active.acknowledged_by = active.ack_comment = None
+        active.evidence, active.message = _jsonable(event.evidence), _message(event)
+        active.updated_at = now
+    elif event.kind == "cleared":
+        active.state, active.cleared_at, active.updated_at = "cleared", now, now
+        active.evidence = {**(active.evidence or {}), "cleared": {"reason": event.reason,
+                                                                  "operation_id": event.operation_id}}
+    session.flush()
+    return active
+
+
+_MEANING = {"DO": "buffer damping factor DO", "BO": "opening spring factor BO"}
+_CAUSE = {("DO", "falling"): "buffer oil leak", ("BO", "falling"): "opening spring relaxation or more resistance",
+          ("BO", "rising"): "less resistance or a pre-compression change",
+          ("DO", "rising"): "buffer damping increase"}
+
+
+def _message(event) -> str:
+    ev = event.evidence or {}
+    direction = ev.get("drift_direction", "")
+    change = (ev.get("current") or {}).get("change_rel")
+    pct = f" ({change * 100:+.1f} % from baseline)" if isinstance(change, (int, float)) else ""
+    cause = _CAUSE.get((event.parameter, direction), "mechanism change")
+    return (f"{event.level.upper()}: {_MEANING.get(event.parameter, event.parameter)} {direction}{pct}; "
+            f"likely {cause}")
+
+
+def acknowledge_drift(session, *, alarm: AlarmRow, by: str, settings) -> None:
+    """Keep the detector's state in step with an acknowledgement made through the API."""
+    from service.alarms import drift
+
+    row, state = _drift_state(session, alarm.breaker_id, alarm.parameter, settings)
+    if row is not None and state.active and state.episode == alarm.episode:
+        state, _ = drift.acknowledge(state, by=by, time=utcnow())
+        _save_state(session, row, alarm.breaker_id, state)
+
+
+def reset_baseline(session, *, breaker_id: int, by: str, settings) -> int:
+    """Admin: the next good fits form a new baseline; active alarms of the breaker are cleared."""
+    from service.alarms import drift
+
+    session.execute(select(BreakerRow.id).where(BreakerRow.id == breaker_id).with_for_update())
+    now = utcnow()
+    cleared = 0
+    for parameter in settings.watched:
+        row, state = _drift_state(session, breaker_id, parameter, settings)
+        state, events = drift.reset_baseline(state, by=by, time=now)
+        for ev in events:
+            if apply_alarm_event(session, breaker_id=breaker_id, event=ev) is not None:
+                cleared += 1
+        _save_state(session, row, breaker_id, state)
+    breaker = session.get(BreakerRow, breaker_id)
+    breaker.baseline_reset_at = now
+    for alarm in crud.list_alarms(session, state="active", breaker_id=breaker_id):
+        alarm.state, alarm.cleared_at, alarm.updated_at = "cleared", now, now
+    session.flush()
+    return cleared
+
+
+def drift_status(session, *, breaker_id: int, settings) -> str:
+    from service.alarms import drift
+
+    states = [_drift_state(session, breaker_id, p, settings)[1] for p in settings.watched]
+    return drift.health_status(states)
+
+
+def fit_row_summary(fit: FitRow | None) -> dict | None:
+    if fit is None:
+        return None
+    return {"status": fit.status, "attempts": fit.attempts}

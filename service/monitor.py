@@ -1,0 +1,166 @@
+"""The service's orchestration: capture (durable) → operation row → fit job.
+
+``Monitor.ingest`` is what an acquisition pipeline's ``on_capture`` and the upload endpoint
+call. The capture file and a spool entry are fsynced first; the operation row (with its queued
+fit) is committed next; only then is the job submitted. When the database is unreachable the
+spool entry stays and a background thread stores it after recovery. At start-up the spool is
+drained and every fit left queued or running is re-queued.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from pathlib import Path
+
+from sqlalchemy.exc import DBAPIError, IntegrityError, OperationalError
+
+from service.acquisition.capture import Capture, CaptureError
+from service.storage import crud
+from service.storage.spool import Spool, write_capture_file
+
+log = logging.getLogger("hvcb.monitor")
+
+
+@dataclass(frozen=True)
+class IngestResult:
+    capture_key: str
+    operation_id: int | None  # None: spooled, the database was unavailable
+    spooled: bool
+
+
+def infer_operation(capture: Capture) -> str:
+    """``open`` when the travel moves away from the closed position (0 rad), else ``close``."""
+    n = max(1, capture.travel.size // 20)
+    start, end = float(capture.travel[:n].mean()), float(capture.travel[-n:].mean())
+    if abs(end - start) < 1e-3:
+        raise CaptureError("the travel does not move: no operation in this capture")
+    return "open" if end > start else "close"
+
+
+class Monitor:
+    """Owns the spool, the executor and the recovery thread of one service process."""
+
+    def __init__(self, settings, session_factory, executor, *, metrics=None):
+        self.settings = settings
+        self.Session = session_factory
+        self.executor = executor
+        self.metrics = metrics
+        self.spool = Spool(settings.spool_dir)
+        self._stop = threading.Event()
+        self._wake = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._drain_lock = threading.Lock()
+        self.db_ok = True
+
+    # -- lifecycle -----------------------------------------------------------------------------
+    def start(self) -> None:
+        self.executor.start()
+        self.recover()
+        self._thread = threading.Thread(target=self._spool_loop, name="hvcb-spool", daemon=True)
+        self._thread.start()
+
+    def stop(self) -> None:
+        self._stop.set()
+        self._wake.set()
+        if self._thread is not None:
+            self._thread.join(timeout=10)
+        self.executor.shutdown(wait=True)
+
+    def recover(self) -> int:
+        """Store spooled captures, then re-queue fits left queued or running. Returns jobs queued."""
+        self.drain_spool()
+        try:
+            with self.Session() as session:
+                pending = crud.pending_operation_ids(session)
+        except (OperationalError, DBAPIError) as exc:
+            log.warning("database unavailable at start-up (%s); will retry", exc.__class__.__name__)
+            self.db_ok = False
+            return 0
+        for op_id in pending:
+            self.executor.submit(op_id)
+        if pending:
+            log.info("re-queued %d fit(s) left pending", len(pending))
+        return len(pending)
+
+    # -- ingest --------------------------------------------------------------------------------
+    def ingest(self, capture: Capture, *, breaker_id: int, operation: str | None = None,
+               source: str = "daq") -> IngestResult:
+        """Make ``capture`` durable, store its operation and queue its fit."""
+        kind = operation or capture.meta.get("operation") or infer_operation(capture)
+        if kind not in ("open", "close"):
+            raise CaptureError(f"operation must be 'open' or 'close', got {kind!r}")
+        key = Spool.new_key()
+        now = datetime.now(timezone.utc)
+        occurred = capture.start_time or now
+        if occurred.tzinfo is None:
+            occurred = occurred.replace(tzinfo=timezone.utc)
+        directory = self.settings.capture_dir / now.strftime("%Y") / now.strftime("%m%d")
+        path, sha = write_capture_file(capture, directory, key)
+        entry = {"capture_key": key, "breaker_id": breaker_id, "kind": kind,
+                 "occurred_at": occurred.isoformat(), "source": source, "capture_path": str(path.resolve()),
+                 "capture_sha256": sha, "flags": list(capture.flags), "sample_rate": capture.sample_rate,
+                 "n_samples": int(capture.travel.size), "spooled_at": now.isoformat()}
+        self.spool.put(entry)
+        if self.metrics is not None:
+            self.metrics.captures.labels(source=source).inc()
+        op_id = self._store(entry) if self.db_ok else None
+        if op_id is None:
+            self._wake.set()
+        return IngestResult(key, op_id, op_id is None)
+
+    def _store(self, entry: dict) -> int | None:
+        """Commit one spool entry's operation and submit its job; None if the DB is unavailable."""
+        try:
+            with self.Session() as session, session.begin():
+                op, created = crud.create_operation(
+                    session, capture_key=entry["capture_key"], breaker_id=entry["breaker_id"], kind=entry["kind"],
+                    occurred_at=datetime.fromisoformat(entry["occurred_at"]), source=entry["source"],
+                    capture_path=entry["capture_path"], capture_sha256=entry["capture_sha256"],
+                    flags=entry["flags"], sample_rate=entry["sample_rate"], n_samples=entry["n_samples"])
+                op_id = op.id
+        except IntegrityError:  # stored concurrently by the spool thread: look it up
+            with self.Session() as session:
+                op = crud.get_operation_by_key(session, capture_key=entry["capture_key"])
+                if op is None:
+                    raise
+                op_id = op.id
+        except (OperationalError, DBAPIError) as exc:
+            if self.db_ok:
+                log.warning("database unavailable (%s); spooling captures", exc.__class__.__name__)
+            self.db_ok = False
+            return None
+        if not self.db_ok:
+            log.info("database back; storing spooled captures")
+        self.db_ok = True
+        self.spool.remove(entry["capture_key"])
+        self.executor.submit(op_id)
+        return op_id
+
+    def drain_spool(self) -> int:
+        """Store every spooled capture that can be stored now; returns how many were stored."""
+        stored = 0
+        with self._drain_lock:
+            for entry in self.spool.pending():
+                if not Path(entry["capture_path"]).exists():
+                    log.error("spooled capture %s has no file; dropping the entry", entry["capture_key"])
+                    self.spool.remove(entry["capture_key"])
+                    continue
+                if self._store(entry) is None:
+                    break
+                stored += 1
+        return stored
+
+    def _spool_loop(self) -> None:
+        while not self._stop.is_set():
+            self._wake.wait(self.settings.spool_retry_s)
+            self._wake.clear()
+            if self._stop.is_set():
+                return
+            if len(self.spool):
+                try:
+                    self.drain_spool()
+                except Exception:
+                    log.exception("draining the spool failed")

@@ -1,0 +1,179 @@
+"""The service's settings: one pydantic-settings class.
+
+Sources, highest first: keyword arguments, environment variables, the TOML file
+(``config/default.toml`` or the file given to ``hvcb serve --config``), field defaults.
+
+Environment variables: ``HVCB_DATA_DIR``, ``DATABASE_URL`` (or ``HVCB_DATABASE_URL``),
+``HVCB_BROKER_URL`` and ``HVCB_<FIELD>`` for every other field.
+"""
+
+from __future__ import annotations
+
+import contextvars
+from pathlib import Path
+from typing import Literal
+
+from pydantic import AliasChoices, BaseModel, Field, field_validator, model_validator
+from pydantic_settings import (BaseSettings, PydanticBaseSettingsSource, SettingsConfigDict,
+                               TomlConfigSettingsSource)
+
+REPO_ROOT = Path(__file__).resolve().parents[1]
+DEFAULT_CONFIG = REPO_ROOT / "config" / "default.toml"
+
+# Known weak secrets refused anywhere a key or password can be configured.
+_WEAK = {"changethis", "changeme", "secret", "password", "admin", "postgres", "hvcb", "test"}
+
+_config_file: contextvars.ContextVar[Path | None] = contextvars.ContextVar("hvcb_config_file", default=None)
+
+
+class AcquisitionSource(BaseModel):
+    """One DAQ the service listens to (the demo starts an emulator and points one at it)."""
+
+    breaker: str = Field(description="breaker name (the breaker file's `name`)")
+    driver: str = Field("serial", description="driver kind understood by drivers/")
+    url: str = Field("", description="driver address, e.g. tcp://127.0.0.1:5020 or socket://127.0.0.1:7000")
+    options: dict = {}
+
+
+class Settings(BaseSettings):
+    """Everything the service, its workers and its commands read."""
+
+    model_config = SettingsConfigDict(env_prefix="HVCB_", extra="forbid", populate_by_name=True,
+                                      env_nested_delimiter="__")
+
+    data_dir: Path = Field(Path("var"), description="SQLite file, capture files, spool and generated key")
+    database_url: str | None = Field(
+        None, validation_alias=AliasChoices("database_url", "DATABASE_URL", "HVCB_DATABASE_URL"),
+        description="SQLAlchemy URL; empty means SQLite at <data_dir>/hvcb.sqlite3")
+    broker_url: str | None = Field(None, description="Celery broker (redis://...); empty means local process pool")
+    executor: Literal["auto", "local", "celery", "inline"] = "auto"
+    workers: int = Field(1, ge=1, le=64, description="local process-pool size")
+    max_attempts: int = Field(3, ge=1, le=20, description="a job whose worker dies this often is failed")
+    host: str = "127.0.0.1"
+    port: int = Field(8000, ge=1, le=65535)
+    breakers: list[Path] = Field(default_factory=list, description="breaker files registered at start")
+    tags: dict[str, str] = Field(default_factory=dict, description="breaker name -> SCADA tag (e.g. Q1)")
+    max_upload_bytes: int = Field(32 * 1024 * 1024, ge=1024)
+    stale_after_s: float = Field(7 * 24 * 3600.0, gt=0, description="older parameters are quality bad")
+    daq_timeout_s: float = Field(30.0, gt=0, description="no DAQ heartbeat for this long: DAQ down")
+    spool_retry_s: float = Field(2.0, gt=0, description="how often spooled captures are retried")
+    fit_seed: int = 1
+    fit_function: str = Field("service.estimation:fit_capture",
+                              description="module:function used by fit jobs (tests inject failures here)")
+    curve_points: int = Field(2000, ge=50, le=20000, description="fitted-curve points kept per fit")
+    celery_visibility_timeout_s: int = Field(600, ge=10)
+    bootstrap_admin_key: str | None = Field(None, description="admin key created at first start; "
+                                            "generated when empty")
+    acquisition: list[AcquisitionSource] = Field(default_factory=list)
+    alarms: dict = Field(default_factory=dict, description="drift detector settings, see docs/alarms.md "
+                         "(service.alarms.settings.DriftSettings)")
+
+    @classmethod
+    def settings_customise_sources(cls, settings_cls: type[BaseSettings],
+                                   init_settings: PydanticBaseSettingsSource,
+                                   env_settings: PydanticBaseSettingsSource,
+                                   dotenv_settings: PydanticBaseSettingsSource,
+                                   file_secret_settings: PydanticBaseSettingsSource):
+        path = _config_file.get() or DEFAULT_CONFIG
+        sources = [init_settings, env_settings]
+        if path.is_file():
+            sources.append(_TomlSource(settings_cls, toml_file=path))
+        return tuple(sources)
+
+    @field_validator("bootstrap_admin_key")
+    @classmethod
+    def _strong_key(cls, v):
+        if v is None or v == "":
+            return None
+        if len(v) < 24 or v.lower() in _WEAK:
+            raise ValueError("bootstrap_admin_key must be at least 24 random characters; "
+                             "leave it empty to have one generated")
+        return v
+
+    @field_validator("alarms")
+    @classmethod
+    def _alarm_settings(cls, v):
+        from service.alarms.settings import DriftSettings
+
+        DriftSettings.from_mapping(v)  # refuse unknown keys and inconsistent thresholds now
+        return v
+
+    @field_validator("database_url")
+    @classmethod
+    def _no_default_password(cls, v):
+        if not v:
+            return None
+        from sqlalchemy.engine import make_url
+        try:
+            url = make_url(v)
+        except Exception:
+            raise ValueError(f"database_url is not a valid SQLAlchemy URL: {v!r}") from None
+        if url.password and url.password.lower() in _WEAK:
+            raise ValueError("database_url uses a well-known default password; set a real one")
+        if url.drivername == "postgresql" or url.drivername == "postgres":
+            url = url.set(drivername="postgresql+psycopg")
+            return url.render_as_string(hide_password=False)
+        return v
+
+    @model_validator(mode="after")
+    def _resolve(self):
+        if self.executor == "celery" and not self.broker_url:
+            raise ValueError("executor 'celery' needs broker_url (HVCB_BROKER_URL)")
+        return self
+
+    # -- derived ------------------------------------------------------------------------------
+    @property
+    def sqlalchemy_url(self) -> str:
+        if self.database_url:
+            return self.database_url
+        return f"sqlite:///{(self.data_dir / 'hvcb.sqlite3').resolve()}"
+
+    @property
+    def executor_kind(self) -> str:
+        if self.executor != "auto":
+            return self.executor
+        return "celery" if self.broker_url else "local"
+
+    @property
+    def drift_settings(self):
+        from service.alarms.settings import DriftSettings
+
+        return DriftSettings.from_mapping(self.alarms)
+
+    @property
+    def capture_dir(self) -> Path:
+        return self.data_dir / "captures"
+
+    @property
+    def spool_dir(self) -> Path:
+        return self.data_dir / "spool"
+
+    @property
+    def key_file(self) -> Path:
+        return self.data_dir / "admin.key"
+
+
+class _TomlSource(TomlConfigSettingsSource):
+    """TOML source whose relative breaker paths are resolved against the file's directory."""
+
+    def __init__(self, settings_cls, toml_file: Path):
+        super().__init__(settings_cls, toml_file=toml_file)
+        base = Path(toml_file).resolve().parent
+        data = self.toml_data if hasattr(self, "toml_data") else None
+        for store in (data, getattr(self, "init_kwargs", None)):
+            if isinstance(store, dict) and "breakers" in store:
+                store["breakers"] = [str((base / p).resolve()) for p in store["breakers"]]
+
+
+def load_settings(config_file: str | Path | None = None, **overrides) -> Settings:
+    """Settings from ``config_file`` (default ``config/default.toml``), the environment and
+    ``overrides``. Raises ``pydantic.ValidationError`` on bad or insecure values."""
+    if config_file is not None:
+        config_file = Path(config_file)
+        if not config_file.is_file():
+            raise FileNotFoundError(f"settings file not found: {config_file}")
+    token = _config_file.set(config_file)
+    try:
+        return Settings(**overrides)
+    finally:
+        _config_file.reset(token)

@@ -1,0 +1,1 @@
+"""SQL storage: models, engine/session factory, migrations and keyword-only CRUD functions."""

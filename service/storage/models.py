@@ -1,0 +1,197 @@
+"""SQLAlchemy 2 models. The schema itself is created by Alembic (``migrations/``), never here."""
+
+from __future__ import annotations
+
+from datetime import datetime, timezone
+
+from sqlalchemy import (JSON, Boolean, DateTime, Float, ForeignKey, Index, Integer, String, Text,
+                        TypeDecorator, UniqueConstraint)
+from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
+
+
+def utcnow() -> datetime:
+    return datetime.now(timezone.utc)
+
+
+class UtcDateTime(TypeDecorator):
+    """Timezone-aware UTC datetimes on every backend (SQLite stores them naive)."""
+
+    impl = DateTime(timezone=True)
+    cache_ok = True
+
+    def process_bind_param(self, value, dialect):
+        if value is None:
+            return None
+        if value.tzinfo is None:
+            value = value.replace(tzinfo=timezone.utc)
+        value = value.astimezone(timezone.utc)
+        return value.replace(tzinfo=None) if dialect.name == "sqlite" else value
+
+    def process_result_value(self, value, dialect):
+        if value is None:
+            return None
+        if value.tzinfo is None:
+            return value.replace(tzinfo=timezone.utc)
+        return value.astimezone(timezone.utc)
+
+
+class Base(DeclarativeBase):
+    type_annotation_map = {datetime: UtcDateTime, dict: JSON, list: JSON}
+
+
+FIT_STATUSES = ("queued", "running", "done", "failed")
+ALARM_STATES = ("raised", "acknowledged", "cleared")
+ROLES = ("reader", "operator", "admin")
+
+
+class BreakerRow(Base):
+    """One monitored breaker with its breaker file and cam table as they were registered."""
+
+    __tablename__ = "breakers"
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    name: Mapped[str] = mapped_column(String(120), unique=True)
+    tag: Mapped[str] = mapped_column(String(60), unique=True)
+    breaker_file: Mapped[str] = mapped_column(Text)
+    cam_file_name: Mapped[str] = mapped_column(String(255))
+    cam_table: Mapped[str] = mapped_column(Text)
+    content_sha256: Mapped[str] = mapped_column(String(64))
+    baseline_reset_at: Mapped[datetime | None]
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+    updated_at: Mapped[datetime] = mapped_column(default=utcnow)
+
+
+class OperationRow(Base):
+    """One breaker operation and its durable capture file."""
+
+    __tablename__ = "operations"
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    breaker_id: Mapped[int] = mapped_column(ForeignKey("breakers.id", ondelete="CASCADE"), index=True)
+    kind: Mapped[str] = mapped_column(String(8))  # open | close
+    capture_key: Mapped[str] = mapped_column(String(64), unique=True)  # spool key: idempotent ingest
+    occurred_at: Mapped[datetime]
+    received_at: Mapped[datetime] = mapped_column(default=utcnow)
+    source: Mapped[str] = mapped_column(String(40))  # daq | upload | replay
+    capture_path: Mapped[str] = mapped_column(String(1024))
+    capture_sha256: Mapped[str] = mapped_column(String(64))
+    flags: Mapped[list] = mapped_column(default=list)
+    sample_rate: Mapped[float] = mapped_column(Float)
+    n_samples: Mapped[int] = mapped_column(Integer)
+    fit: Mapped[FitRow | None] = relationship(back_populates="operation", uselist=False, lazy="selectin")
+
+    __table_args__ = (Index("ix_operations_breaker_time", "breaker_id", "occurred_at"),)
+
+
+class FitRow(Base):
+    """The fit job of one operation, and its result. One row per operation: the job key."""
+
+    __tablename__ = "fits"
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    operation_id: Mapped[int] = mapped_column(ForeignKey("operations.id", ondelete="CASCADE"), unique=True)
+    breaker_id: Mapped[int] = mapped_column(ForeignKey("breakers.id", ondelete="CASCADE"), index=True)
+    kind: Mapped[str] = mapped_column(String(8))
+    status: Mapped[str] = mapped_column(String(10), default="queued", index=True)
+    attempts: Mapped[int] = mapped_column(Integer, default=0)
+    results_stored: Mapped[int] = mapped_column(Integer, default=0)  # must never exceed 1
+    failure_reason: Mapped[str | None] = mapped_column(Text)
+    parameters: Mapped[dict | None]
+    ci95: Mapped[dict | None]
+    stderr: Mapped[dict | None]
+    rmse_rad: Mapped[float | None] = mapped_column(Float)
+    fitness: Mapped[float | None] = mapped_column(Float)
+    window_start_s: Mapped[float | None] = mapped_column(Float)
+    window_end_s: Mapped[float | None] = mapped_column(Float)
+    onset_delay_s: Mapped[float | None] = mapped_column(Float)
+    noise_rad: Mapped[float | None] = mapped_column(Float)
+    evaluations: Mapped[int | None] = mapped_column(Integer)
+    runtime_s: Mapped[float | None] = mapped_column(Float)
+    identifiable: Mapped[bool | None] = mapped_column(Boolean)
+    condition_number: Mapped[float | None] = mapped_column(Float)
+    dc_used: Mapped[float | None] = mapped_column(Float)
+    dc_source: Mapped[str | None] = mapped_column(String(120))
+    warnings: Mapped[list | None]
+    characteristics: Mapped[dict | None]
+    curve: Mapped[dict | None]  # {"t": [...], "fitted": [...]} downsampled fitted travel [s, rad]
+    result: Mapped[dict | None]  # FitResult.to_dict(), for completeness
+    worker: Mapped[str | None] = mapped_column(String(120))
+    queued_at: Mapped[datetime] = mapped_column(default=utcnow)
+    started_at: Mapped[datetime | None]
+    finished_at: Mapped[datetime | None]
+    operation: Mapped[OperationRow] = relationship(back_populates="fit")
+
+
+class ParameterValueRow(Base):
+    """One fitted parameter of one operation: the trend and SCADA tables read these."""
+
+    __tablename__ = "parameter_values"
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    fit_id: Mapped[int] = mapped_column(ForeignKey("fits.id", ondelete="CASCADE"), index=True)
+    operation_id: Mapped[int] = mapped_column(ForeignKey("operations.id", ondelete="CASCADE"))
+    breaker_id: Mapped[int] = mapped_column(ForeignKey("breakers.id", ondelete="CASCADE"))
+    kind: Mapped[str] = mapped_column(String(8))
+    name: Mapped[str] = mapped_column(String(16))
+    value: Mapped[float] = mapped_column(Float)
+    ci_low: Mapped[float | None] = mapped_column(Float)
+    ci_high: Mapped[float | None] = mapped_column(Float)
+    identifiable: Mapped[bool] = mapped_column(Boolean, default=True)
+    occurred_at: Mapped[datetime]
+
+    __table_args__ = (UniqueConstraint("fit_id", "name"),
+                      Index("ix_parameter_values_trend", "breaker_id", "name", "occurred_at"))
+
+
+class AlarmRow(Base):
+    """A drift alarm and its lifecycle raised → acknowledged → cleared."""
+
+    __tablename__ = "alarms"
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    breaker_id: Mapped[int] = mapped_column(ForeignKey("breakers.id", ondelete="CASCADE"), index=True)
+    parameter: Mapped[str] = mapped_column(String(16))
+    level: Mapped[str] = mapped_column(String(10))  # warning | alarm
+    episode: Mapped[int] = mapped_column(Integer, default=0)  # the drift detector's alarm number
+    state: Mapped[str] = mapped_column(String(14), default="raised", index=True)
+    message: Mapped[str] = mapped_column(Text, default="")
+    evidence: Mapped[dict] = mapped_column(default=dict)
+    operation_id: Mapped[int | None] = mapped_column(ForeignKey("operations.id", ondelete="SET NULL"))
+    raised_at: Mapped[datetime] = mapped_column(default=utcnow)
+    updated_at: Mapped[datetime] = mapped_column(default=utcnow)
+    acknowledged_at: Mapped[datetime | None]
+    acknowledged_by: Mapped[str | None] = mapped_column(String(120))
+    ack_comment: Mapped[str | None] = mapped_column(Text)
+    cleared_at: Mapped[datetime | None]
+
+
+class DriftStateRow(Base):
+    """The drift detector's persisted state for one watched parameter of one breaker."""
+
+    __tablename__ = "drift_states"
+    breaker_id: Mapped[int] = mapped_column(ForeignKey("breakers.id", ondelete="CASCADE"), primary_key=True)
+    parameter: Mapped[str] = mapped_column(String(16), primary_key=True)
+    state: Mapped[dict] = mapped_column(default=dict)
+    updated_at: Mapped[datetime] = mapped_column(default=utcnow)
+
+
+class ApiKeyRow(Base):
+    """An API key: only its SHA-256 is stored (keys are 256-bit random, so a fast hash is enough)."""
+
+    __tablename__ = "api_keys"
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    name: Mapped[str] = mapped_column(String(120))
+    prefix: Mapped[str] = mapped_column(String(16))
+    key_hash: Mapped[str] = mapped_column(String(64), unique=True)
+    role: Mapped[str] = mapped_column(String(10))
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+    revoked_at: Mapped[datetime | None]
+
+
+class DaqStatusRow(Base):
+    """What the acquisition side last reported for a breaker's DAQ (for /healthz, SCADA, metrics)."""
+
+    __tablename__ = "daq_status"
+    breaker_id: Mapped[int] = mapped_column(ForeignKey("breakers.id", ondelete="CASCADE"), primary_key=True)
+    connected: Mapped[bool] = mapped_column(Boolean, default=False)
+    last_seen: Mapped[datetime | None]
+    frames: Mapped[int] = mapped_column(Integer, default=0)
+    frames_dropped: Mapped[int] = mapped_column(Integer, default=0)
+    crc_errors: Mapped[int] = mapped_column(Integer, default=0)
+    captures: Mapped[int] = mapped_column(Integer, default=0)
+    detail: Mapped[str] = mapped_column(Text, default="")
