@@ -72,14 +72,15 @@ def minimize(evaluate: Callable[[np.ndarray], np.ndarray], dimension: int, *, se
     evaluations = 0
     while it < rules.max_iterations:
         it += 1
-        X = np.array(es.ask(), dtype=float)
+        arx = es.ask()  # plain floats: purecma's arithmetic is slow on numpy scalars
+        X = np.array(arx, dtype=float)
         inside = np.clip(X, 0.0, 1.0)
         f = np.asarray(evaluate(inside), dtype=float)
         evaluations += len(X)
         worst = np.nanmax(np.where(np.isfinite(f), f, np.nan)) if np.any(np.isfinite(f)) else 1e6
         f = np.where(np.isfinite(f), f, 10.0 * abs(worst) + 1.0)
         penalised = f + np.sum((X - inside) ** 2, axis=1)
-        es.tell([list(x) for x in X], list(penalised))
+        es.tell(arx, penalised.tolist())
         k = int(np.argmin(f + np.sum((X - inside) ** 2, axis=1)))
         if f[k] < best_f and np.all(X[k] == inside[k]):
             best_f, best_x = float(f[k]), inside[k].copy()

@@ -10,7 +10,6 @@ import numpy as np
 
 from ..mechanics.breaker import Breaker
 from ..mechanics.closing import closing_angle
-from ..mechanics.opening import opening_angle
 from ..mechanics.opening_kernel import opening_curves
 from .window import Grid
 
@@ -40,22 +39,21 @@ class OpeningCurves:
     @staticmethod
     def at(t, x, breaker: Breaker):
         """Opening angle [rad] at capture-window times ``t`` [s] for one parameter vector."""
-        AO, BO, DO, EO, tau = x
-        theta, _, _ = opening_angle(np.asarray(t) - tau, AO, BO, DO, EO, CO=breaker.CO,
-                                    alpha0=breaker.alpha0)
-        return theta
+        t = np.ascontiguousarray(t, dtype=float)
+        X = np.ascontiguousarray(np.atleast_2d(np.asarray(x, dtype=float)))
+        return opening_curves(X, t, np.zeros_like(t), breaker.CO, breaker.alpha0, True)[0]
 
 
 class ClosingCurves:
     """Eq. 7 on the grid (compiled RK4 with one step per grid interval); X columns AC, BC, CC, τ."""
 
-    def __init__(self, breaker: Breaker, grid: Grid, dc: float):
+    def __init__(self, breaker: Breaker, grid: Grid, dc: float, dt_max: float = 1 / 16000):
         self.cam = breaker.cam
         self.geometry = breaker.closing_geometry
         self.grid = grid
         self.dc = float(dc)
         spacing = float(np.median(np.diff(grid.t))) if grid.t.size > 1 else 1e-4
-        self.dt_max = min(spacing, 1 / 16000)
+        self.dt_max = min(spacing, dt_max)
 
     def full(self, X):
         X = np.atleast_2d(X)
@@ -74,7 +72,12 @@ class ClosingCurves:
         return theta2[0]
 
 
-def weighted_rmse(model, grid: Grid):
-    """RMSE [rad] of block means against model rows, each block weighted by its sample count."""
+def weighted_rmse(model, grid: Grid, within_ss: float = 0.0):
+    """RMSE [rad] at the measured samples, from block means.
+
+    Σ(y − m)² over the samples splits into Σ count·(ȳ − m̄)² over the blocks plus the
+    within-block scatter ``within_ss`` [rad²] (noise, independent of the candidate), so this is the
+    paper's RMSE against the measured curve without touching every sample.
+    """
     r = model - grid.y[None, :]
-    return np.sqrt(np.sum(grid.count * r * r, axis=1) / np.sum(grid.count))
+    return np.sqrt((np.sum(grid.count * r * r, axis=1) + within_ss) / np.sum(grid.count))

@@ -41,6 +41,8 @@ class FitSettings:
     ----------
     block_open, block_close : int
         Samples averaged into one fitting-grid point (anti-alias boxcar).
+    block_close_search, search_step_close : int, float
+        Coarser grid and RK4 step [s] the closing's CMA-ES search uses before the exact polish.
     tau_max : float
         Largest onset delay between latch shock and motion [s].
     sigma0 : float
@@ -54,6 +56,8 @@ class FitSettings:
 
     block_open: int = 32
     block_close: int = 8
+    block_close_search: int = 32
+    search_step_close: float = 1 / 4000
     tau_max: float = 2e-3
     sigma0: float = 0.3
     max_readaptations: int = 8
@@ -152,13 +156,14 @@ def _fit_opening(window: FitWindow, breaker: Breaker, seed, settings, evaluator)
     full = OpeningCurves(breaker, grid)
 
     space1 = ParameterSpace.from_ranges(("AO", "BO", "tau"), ranges)
-    x1, space1, ev1, ra1, st1, hit1 = _search(lambda X: weighted_rmse(pre.pre_buffer(X), pre.grid),
-                                              space1, seed, settings, evaluator)
+    ss_pre, ss_full = _within_ss(pre.grid, window), _within_ss(grid, window)
+    x1, space1, ev1, ra1, st1, hit1 = _search(
+        lambda X: weighted_rmse(pre.pre_buffer(X), pre.grid, ss_pre), space1, seed, settings, evaluator)
     AO, BO, tau = x1
 
     def score2(X):
         full_X = np.column_stack([np.full(len(X), AO), np.full(len(X), BO), X, np.full(len(X), tau)])
-        return weighted_rmse(full.full(full_X), grid)
+        return weighted_rmse(full.full(full_X), grid, ss_full)
 
     space2 = ParameterSpace.from_ranges(("DO", "EO"), ranges)
     x2, space2, ev2, ra2, st2, hit2 = _search(score2, space2, seed + 1000, settings, evaluator, fixed=())
@@ -178,10 +183,15 @@ def _fit_opening(window: FitWindow, breaker: Breaker, seed, settings, evaluator)
 
 def _fit_closing(window: FitWindow, breaker: Breaker, dc, seed, settings, evaluator) -> FitResult:
     grid = decimate(window.t, window.y, settings.block_close)
-    curves = ClosingCurves(breaker, grid, dc)
+    # Two fidelities: CMA-ES searches with coarse RK4 steps; the polish and the uncertainty use
+    # the accurate step, so the reported estimate carries no step-size bias.
+    search = ClosingCurves(breaker, decimate(window.t, window.y, settings.block_close_search), dc,
+                           dt_max=settings.search_step_close)
+    exact = ClosingCurves(breaker, grid, dc)
     ranges = dict(breaker.ranges, tau=(0.0, settings.tau_max))
     space = ParameterSpace.from_ranges(("AC", "BC", "CC", "tau"), ranges)
-    x, space, ev, ra, st, hit = _search(lambda X: weighted_rmse(curves.full(X), grid),
+    ss = _within_ss(search.grid, window)
+    x, space, ev, ra, st, hit = _search(lambda X: weighted_rmse(search.full(X), search.grid, ss),
                                         space, seed, settings, evaluator)
     names = list(CLOSING_PARAMETERS) + ["tau"]
     scale = np.array([20000.0, 2.0, 10000.0, 1e-3])
@@ -189,7 +199,7 @@ def _fit_closing(window: FitWindow, breaker: Breaker, dc, seed, settings, evalua
     upper = np.array([1e7, 100.0, 1e6, settings.tau_max])
 
     def residuals(p):
-        return grid.weight * (curves.full(p[None, :])[0] - grid.y)
+        return grid.weight * (exact.full(p[None, :])[0] - grid.y)
 
     return _finish("close", names, x, residuals, scale, lower, upper, window, settings,
                    ev, ra, st, hit, space.as_dict())
@@ -232,6 +242,11 @@ def _jacobian(residuals, x, scale):
         xp[i] += h
         J[:, i] = (residuals(xp) - r0) / h
     return J
+
+
+def _within_ss(grid, window: FitWindow) -> float:
+    """Expected within-block residual sum of squares [rad²]: the noise the block means average out."""
+    return float(np.sum(grid.count - 1.0)) * window.noise_rad**2
 
 
 def _subgrid(grid, n):

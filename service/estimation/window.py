@@ -240,3 +240,4 @@ def _longest_run(mask):
     padded = np.concatenate([[0], mask.astype(int), [0]])
     d = np.diff(padded)
     return int(np.max(np.nonzero(d == -1)[0] - np.nonzero(d == 1)[0]))
+
