@@ -1,0 +1,57 @@
+"""Benchmark: `hvcb diagnose` on one capture, whole catalogue, one core.
+
+Prints the runtime per operation and writes bench/results/diagnose_speed.json.
+Run: .venv/bin/python bench/diagnose_speed.py
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import time
+from pathlib import Path
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("NUMBA_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+
+from service.acquisition.synthetic import synthesize_capture  # noqa: E402
+from service.breaker_file import load_breaker  # noqa: E402
+from service.diagnosis import diagnose  # noqa: E402
+from service.mechanics.prototype import REALISTIC, Effects, make_prototype_simulator  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def main() -> dict:
+    breaker = load_breaker(ROOT / "config/breakers/reference-252kV.toml")
+    params = breaker.design_parameters()
+    out = {"machine": platform.processor() or platform.machine(), "python": platform.python_version(),
+           "cases": []}
+    cases = [("open", "orifice_buffer"), ("open", None), ("close", "contact_wipe"), ("close", None)]
+    warm, _ = synthesize_capture(breaker, "open", params, rng=np.random.default_rng(0))
+    diagnose([warm], breaker, "open")  # compile the kernels once (numba cache)
+    for op, name in cases:
+        eff = Effects.only(name, REALISTIC[name]) if name else Effects()
+        cap, _ = synthesize_capture(breaker, op, params, rng=np.random.default_rng(11),
+                                    simulate=make_prototype_simulator(breaker, eff, op, method="fast"))
+        t0 = time.perf_counter()
+        res = diagnose([cap], breaker, op)
+        dt = time.perf_counter() - t0
+        n = len(res["candidates"])
+        print(f"diagnose {op:5s} truth={name or 'none':15s} verdict={res['verdict']:15s} "
+              f"{n} effects  {dt:6.2f} s")
+        out["cases"].append({"operation": op, "truth": name or "none", "verdict": res["verdict"],
+                             "effects": n, "runtime_s": dt})
+    out["max_runtime_s"] = max(c["runtime_s"] for c in out["cases"])
+    out["target_s"] = 10.0
+    (ROOT / "bench/results").mkdir(parents=True, exist_ok=True)
+    (ROOT / "bench/results/diagnose_speed.json").write_text(json.dumps(out, indent=1))
+    print(f"max {out['max_runtime_s']:.2f} s (target {out['target_s']:.0f} s)")
+    return out
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,32 @@
+"""Pieces of the diagnosis: the fit-grade integrator, phases and residual statistics."""
+
+import numpy as np
+import pytest
+
+from service.diagnosis.data import FIT_DT
+from service.diagnosis.phases import phase_bounds
+from service.mechanics.opening import simulate_opening
+from service.mechanics.prototype import REALISTIC, Effects, make_prototype_simulator, simulate_prototype_opening
+
+
+@pytest.mark.parametrize("name", ["orifice_buffer", "rod_elasticity", "stribeck_friction"])
+def test_fit_step_is_accurate_enough(breaker, name):
+    """The diagnosis integrates at FIT_DT; against the exact reference it errs far below noise."""
+    t = np.arange(0, 0.07, 1 / 8000)
+    p = breaker.design_parameters()
+    eff = Effects.only(name, REALISTIC[name])
+    exact = make_prototype_simulator(breaker, eff, "open")(p, t)
+    fast = simulate_prototype_opening(p, t, breaker=breaker, effects=eff, method="fast", dt_max=FIT_DT)
+    valid = t < exact.t_peak
+    assert np.max(np.abs(exact.theta - fast.theta)[valid]) < 1e-4  # noise floor 1.5e-3 rad
+
+
+def test_opening_phases_split_at_alpha0(breaker):
+    p = breaker.design_parameters()
+    t = np.arange(0, 0.06, 1e-5)
+    tr = simulate_opening(p, t, CO=breaker.CO, alpha0=breaker.alpha0)
+    b = phase_bounds("open", t, tr.theta, tr.t_peak, breaker)
+    assert [x[0] for x in b] == ["acceleration", "buffer_engagement", "buffer_stroke", "approach"]
+    assert abs(b[0][2] - tr.events["buffer_engaged"]) < 2e-5
+    assert b[-1][2] == pytest.approx(tr.t_peak)
+    assert all(x[1] <= x[2] for x in b)

@@ -1,0 +1,86 @@
+"""The blind gap study (quick size) and the pieces it relies on. Seeds 4242 / 121 (the study's
+default is 2026; tests/diagnosis/test_diagnose.py uses 101..199 odd)."""
+
+import json
+
+import pytest
+
+from service.diagnosis import diagnose
+from service.diagnosis.diagnose import decide
+from service.diagnosis.study import run_gap_study
+from service.mechanics.prototype import EFFECT_NAMES, Effects
+from service.studies.commands import load_study
+
+
+@pytest.fixture(scope="module")
+def quick_study(tmp_path_factory):
+    out = tmp_path_factory.mktemp("gap")
+    return out, run_gap_study(out, seed=4242, quick=True, workers=2)
+
+
+def test_registry_points_at_the_study():
+    assert load_study("gap") is run_gap_study
+
+
+def test_outputs_and_keys(quick_study):
+    out, data = quick_study
+    assert (out / "gap.md").read_text().startswith("# Blind gap-diagnosis study")
+    assert (out / "gap_confusion.png").stat().st_size > 1000
+    on_disk = json.loads((out / "gap.json").read_text())
+    for key in ("confusion", "per_effect", "distinguishable_effects", "absorbed_effects",
+                "top1_accuracy_distinguishable", "false_alarm_rate", "control_none_rate",
+                "median_shrink_true_effect", "worst_phase_in_region", "loo_unexplained_rate",
+                "absorbed_reported_absorbed", "absorbed_confident_wrong", "rows"):
+        assert key in on_disk
+    # The diagnoser only saw COMTRADE files.
+    assert len(list((out / "captures").glob("*.cfg"))) == data["captures"]
+
+
+def test_confusion_counts_add_up(quick_study):
+    _, data = quick_study
+    assert data["captures"] == 2 * len(EFFECT_NAMES) + 4
+    total = sum(sum(row.values()) for row in data["confusion"].values())
+    assert total == data["captures"]
+    for e in EFFECT_NAMES:
+        assert sum(data["confusion"][e].values()) == 2
+    assert sum(data["confusion"]["none"].values()) == 4
+    assert data["errors"] == 0
+
+
+def test_meaningful_figures(quick_study):
+    _, data = quick_study
+    assert data["control_none_rate"] >= 0.75          # controls are (almost) all `none`
+    assert data["false_alarm_rate"] == pytest.approx(1 - data["control_none_rate"])
+    # cam friction is exactly a rescaling of BC: absorbed, never named
+    assert "cam_friction" in data["absorbed_effects"]
+    assert data["per_effect"]["cam_friction"]["named_wrong"] == 0
+    assert data["per_effect"]["cam_friction"]["reported_absorbed"] == 1.0
+    # the study finds some effects distinguishable and names them, and never names a wrong one
+    assert data["distinguishable_effects"]
+    assert data["top1_accuracy_distinguishable"] >= 0.5
+    assert data["confident_wrong_all_effects"] <= 0.1
+    assert data["median_shrink_true_effect"] >= 0.5
+    for r in data["rows"]:
+        if r["truth"] != "none":
+            assert r["loo_verdict"] != r["truth"]     # the true effect is not in the LOO catalogue
+
+
+def test_leave_one_out_equals_rerun_without_the_effect(breaker, make_capture):
+    cap = make_capture(breaker, "open", Effects(stribeck_friction=0.3), seed=121)
+    cat = ["stribeck_friction", "viscous_friction", "orifice_buffer"]
+    full = diagnose([cap], breaker, "open", effects=cat)
+    rerun = diagnose([cap], breaker, "open", effects=cat[1:])
+    assert decide(full["candidates"], full["significant_gap"], exclude=("stribeck_friction",))[0] \
+        == rerun["verdict"]
+
+
+def test_margin_reports_ambiguity():
+    c = dict(distinguishable=True, shrink=0.8, holdout_shrink=0.7)
+    cands = [dict(c, effect="orifice_buffer", delta_bic=-537.0),
+             dict(c, effect="stribeck_friction", delta_bic=-533.0)]
+    verdict, chosen, ambiguous = decide(cands, True)
+    assert verdict == "unexplained" and chosen is None
+    assert set(ambiguous) == {"orifice_buffer", "stribeck_friction"}
+    cands[1]["delta_bic"] = -300.0
+    assert decide(cands, True)[0] == "orifice_buffer"
+    assert decide(cands, False)[0] == "none"
