@@ -32,6 +32,7 @@ class CMAResult:
 
     x_best: np.ndarray
     f_best: float
+    x_mean: np.ndarray
     evaluations: int
     iterations: int
     stop_reason: str
@@ -41,7 +42,7 @@ class CMAResult:
 def minimize(evaluate: Callable[[np.ndarray], np.ndarray], dimension: int, *, seed: int,
              x0=None, sigma0: float = 0.3, popsize: int | None = None,
              rules: StoppingRules = StoppingRules(), record: bool = False,
-             edge_dims: tuple = (), edge: float = 0.01, edge_sigma: float = 0.02) -> CMAResult:
+             edge_dims: tuple = (), edge: float = 0.01, edge_sigma: float = 0.05) -> CMAResult:
     """Minimise ``evaluate`` over the unit cube [0, 1]^dimension.
 
     Parameters
@@ -108,4 +109,5 @@ def minimize(evaluate: Callable[[np.ndarray], np.ndarray], dimension: int, *, se
         best_x = np.clip(np.array(es.xmean, dtype=float), 0, 1)
         best_f = float(evaluate(best_x[None, :])[0])
         evaluations += 1
-    return CMAResult(best_x, best_f, evaluations, it, reason, history)
+    return CMAResult(best_x, best_f, np.clip(np.array(es.xmean, dtype=float), 0, 1), evaluations,
+                     it, reason, history)

@@ -136,6 +136,10 @@ def _search(score, space: ParameterSpace, seed: int, settings: FitSettings, eval
                        "evaluations": res.evaluations, "stop": res.stop_reason,
                        "rmse_grid_rad": float(res.f_best)})
         hit = space.edges_hit(x, fixed=fixed)
+        if res.stop_reason == "edge" and not hit:
+            # The distribution sits on the edge even if its best sample does not.
+            x = space.to_physical(res.x_mean)
+            hit = space.edges_hit(x, fixed=fixed)
         if not hit or readapt >= settings.max_readaptations:
             return x, space, evaluations, readapt, stages, hit
         space = space.readapted(x, fixed=fixed)
