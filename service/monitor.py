@@ -19,7 +19,7 @@ from sqlalchemy.exc import DBAPIError, IntegrityError, OperationalError
 
 from service.acquisition.capture import Capture, CaptureError
 from service.storage import crud
-from service.storage.spool import Spool, write_capture_file
+from service.storage.spool import Spool, capture_digest, capture_files, write_capture_file
 
 log = logging.getLogger("hvcb.monitor")
 
@@ -87,8 +87,12 @@ class Monitor:
 
     # -- ingest --------------------------------------------------------------------------------
     def ingest(self, capture: Capture, *, breaker_id: int, operation: str | None = None,
-               source: str = "daq") -> IngestResult:
-        """Make ``capture`` durable, store its operation and queue its fit."""
+               source: str = "daq", capture_path: str | Path | None = None) -> IngestResult:
+        """Make ``capture`` durable, store its operation and queue its fit.
+
+        ``capture_path``: the capture is already durable in this COMTRADE file (the acquisition
+        pipeline wrote and fsynced it); it is referenced, not copied.
+        """
         kind = operation or capture.meta.get("operation") or infer_operation(capture)
         if kind not in ("open", "close"):
             raise CaptureError(f"operation must be 'open' or 'close', got {kind!r}")
@@ -98,7 +102,11 @@ class Monitor:
         if occurred.tzinfo is None:
             occurred = occurred.replace(tzinfo=timezone.utc)
         directory = self.settings.capture_dir / now.strftime("%Y") / now.strftime("%m%d")
-        path, sha = write_capture_file(capture, directory, key)
+        if capture_path is not None:
+            path = Path(capture_path)
+            sha = capture_digest(capture_files(path))
+        else:
+            path, sha = write_capture_file(capture, directory, key)
         entry = {"capture_key": key, "breaker_id": breaker_id, "kind": kind,
                  "occurred_at": occurred.isoformat(), "source": source, "capture_path": str(path.resolve()),
                  "capture_sha256": sha, "flags": list(capture.flags), "sample_rate": capture.sample_rate,

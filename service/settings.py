@@ -26,13 +26,59 @@ _WEAK = {"changethis", "changeme", "secret", "password", "admin", "postgres", "h
 _config_file: contextvars.ContextVar[Path | None] = contextvars.ContextVar("hvcb_config_file", default=None)
 
 
-class AcquisitionSource(BaseModel):
-    """One DAQ the service listens to (the demo starts an emulator and points one at it)."""
+class SerialDaqSettings(BaseModel):
+    """A streaming DAQ on a serial line, USB CDC or ``socket://host:port`` (docs/drivers.md)."""
 
-    breaker: str = Field(description="breaker name (the breaker file's `name`)")
-    driver: str = Field("serial", description="driver kind understood by drivers/")
-    url: str = Field("", description="driver address, e.g. tcp://127.0.0.1:5020 or socket://127.0.0.1:7000")
-    options: dict = {}
+    model_config = {"extra": "forbid"}
+    url: str = Field("", description="/dev/ttyACM0, /dev/serial/by-id/..., or socket://host:port")
+    baudrate: int = Field(6_000_000, gt=0, description="[bit/s]; ignored by USB CDC and sockets")
+    reconnect_min_s: float = Field(0.1, gt=0)
+    reconnect_max_s: float = Field(5.0, gt=0)
+
+
+class ModbusDaqSettings(BaseModel):
+    """A capture-buffer DAQ on Modbus TCP or RTU (docs/drivers.md, config/modbus-registers.toml)."""
+
+    model_config = {"extra": "forbid"}
+    transport: Literal["tcp", "rtu"] = "tcp"
+    host: str = "127.0.0.1"
+    port: int = Field(502, ge=1, le=65535)
+    url: str = Field("", description="RTU: serial device or socket://gateway:port")
+    baudrate: int = Field(115200, gt=0)
+    device_id: int = Field(1, ge=0, le=247)
+    timeout_s: float = Field(1.0, gt=0)
+    poll_interval_s: float = Field(0.2, gt=0)
+    block_retries: int = Field(3, ge=0)
+
+
+class ReplayDaqSettings(BaseModel):
+    """Recorded COMTRADE/CSV files played as if a DAQ sent them."""
+
+    model_config = {"extra": "forbid"}
+    files: list[Path] = Field(default_factory=list)
+    speed: float | None = Field(1.0, gt=0, description="1 = real time; empty/None = as fast as possible")
+
+
+class AcquisitionSettings(BaseModel):
+    """``[acquisition]``: the DAQ this service listens to. Only the chosen driver's table is used."""
+
+    model_config = {"extra": "forbid"}
+    driver: Literal["none", "serial", "modbus", "replay"] = "none"
+    breaker: str = Field("", description="breaker name (breaker file `name`); empty = the first configured")
+    status_interval_s: float = Field(1.0, gt=0, description="how often the driver counters are stored")
+    serial: SerialDaqSettings = Field(default_factory=SerialDaqSettings)
+    modbus: ModbusDaqSettings = Field(default_factory=ModbusDaqSettings)
+    replay: ReplayDaqSettings = Field(default_factory=ReplayDaqSettings)
+
+    @model_validator(mode="after")
+    def _complete(self):
+        if self.driver == "serial" and not self.serial.url:
+            raise ValueError("acquisition driver 'serial' needs serial.url (a device path or socket://host:port)")
+        if self.driver == "modbus" and self.modbus.transport == "rtu" and not self.modbus.url:
+            raise ValueError("acquisition driver 'modbus' with transport 'rtu' needs modbus.url")
+        if self.driver == "replay" and not self.replay.files:
+            raise ValueError("acquisition driver 'replay' needs replay.files")
+        return self
 
 
 class Settings(BaseSettings):
@@ -61,10 +107,16 @@ class Settings(BaseSettings):
     fit_function: str = Field("service.estimation:fit_capture",
                               description="module:function used by fit jobs (tests inject failures here)")
     curve_points: int = Field(2000, ge=50, le=20000, description="fitted-curve points kept per fit")
-    celery_visibility_timeout_s: int = Field(600, ge=10)
+    celery_visibility_timeout_s: int = Field(600, ge=10, description="Redis: an unacknowledged task whose "
+                                             "worker machine vanished is redelivered after this long")
+    celery_queue: str = Field("hvcb", min_length=1, max_length=100, pattern=r"^[A-Za-z0-9_.:-]+$",
+                              description="Celery queue the fit tasks go to (API and workers must agree)")
+    celery_key_prefix: str = Field("", max_length=100, pattern=r"^[A-Za-z0-9_.:-]*$",
+                                   description="prefix of every Redis key (several installations, one Redis)")
     bootstrap_admin_key: str | None = Field(None, description="admin key created at first start; "
                                             "generated when empty")
-    acquisition: list[AcquisitionSource] = Field(default_factory=list)
+    acquisition: AcquisitionSettings = Field(default_factory=AcquisitionSettings,
+                                             description="the DAQ driver ([acquisition] table)")
     alarms: dict = Field(default_factory=dict, description="drift detector settings, see docs/alarms.md "
                          "(service.alarms.settings.DriftSettings)")
 

@@ -63,6 +63,8 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
     from service.monitor import Monitor
     from service.workers import make_executor
 
+    from .daq import DaqRunner
+
     @asynccontextmanager
     async def lifespan(app: FastAPI):
         settings.data_dir.mkdir(parents=True, exist_ok=True)
@@ -74,13 +76,20 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
             on_key(key)
         ex = executor or make_executor(settings, on_result=lambda r: app.state.metrics_local.observe(r))
         monitor = Monitor(settings, Session, ex)
-        app.state.engine, app.state.Session, app.state.monitor = engine, Session, monitor
+        daq = DaqRunner(settings, Session, monitor)
+        app.state.engine, app.state.Session, app.state.monitor, app.state.daq = engine, Session, monitor, daq
         if start_monitor:
             monitor.start()
+            try:
+                daq.start()
+            except Exception:
+                monitor.stop()
+                raise
         try:
             yield
         finally:
             if start_monitor:
+                daq.stop()
                 monitor.stop()
             else:
                 ex.shutdown(wait=False)
@@ -105,19 +114,37 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
 
     @app.get("/healthz", tags=["service"])
     def healthz(request: Request):
-        """Liveness (open: no key needed). Says whether the database answers and the DAQ is connected."""
-        monitor = request.app.state.monitor
-        out = {"status": "ok", "database": "ok", "spooled_captures": len(monitor.spool), "daq": []}
+        """Liveness (open: no key needed). Says whether the database answers and the DAQ is connected.
+
+        ``daq_connected``: true/false for this service's DAQ (``[acquisition]``), null when none is
+        configured; ``daq`` lists every breaker's last reported DAQ status (also remote ones).
+        """
+        from datetime import timedelta
+
+        from service.storage.models import utcnow
+
+        monitor, daq = request.app.state.monitor, request.app.state.daq
+        out = {"status": "ok", "database": "ok", "spooled_captures": len(monitor.spool),
+               "daq_connected": daq.connected() if daq.enabled else None,
+               "daq_driver": settings.acquisition.driver, "daq": []}
+        if daq.enabled and daq.error:
+            out["daq_error"] = daq.error
         try:
             with request.app.state.Session() as session:
                 session.execute(select(1))
                 names = {b.id: b.name for b in crud.list_breakers(session)}
+                now, timeout = utcnow(), timedelta(seconds=settings.daq_timeout_s)
                 for d in crud.daq_statuses(session):
-                    out["daq"].append({"breaker": names.get(d.breaker_id), "connected": d.connected,
+                    fresh = d.last_seen is not None and now - d.last_seen <= timeout
+                    out["daq"].append({"breaker": names.get(d.breaker_id), "connected": bool(d.connected and fresh),
                                        "last_seen": d.last_seen.isoformat().replace("+00:00", "Z")
-                                       if d.last_seen else None})
+                                       if d.last_seen else None,
+                                       "frames_dropped": d.frames_dropped, "crc_errors": d.crc_errors,
+                                       "captures": d.captures})
         except (OperationalError, DBAPIError):
             out["status"], out["database"] = "degraded", "unavailable"
+        if daq.enabled and not out["daq_connected"]:
+            out["status"] = "degraded"
         return out
 
     @app.get("/metrics", tags=["service"], dependencies=[Depends(require("reader"))],

@@ -20,7 +20,7 @@ def register(sub) -> None:
     p.add_argument("--port", type=int, default=None)
     p.add_argument("--config", default=None)
     p.add_argument("--keep", action="store_true", help="keep the previous demo database instead of starting fresh")
-    p.add_argument("--interval", type=float, default=1.5, help="seconds between operations")
+    p.add_argument("--interval", type=float, default=1.5, help="seconds between operations of the emulated DAQ")
     p.set_defaults(func=cmd_demo)
 
     p = sub.add_parser("migrate", help="migrate the database (Alembic) up or down")
@@ -111,67 +111,73 @@ def cmd_serve(args) -> int:
 
 def cmd_worker(args) -> int:
     from service.cli import UserError
-    from service.workers.celery_backend import make_celery
+    from service.workers.celery_backend import make_celery_from_settings
 
     settings = _settings(args)
     if not settings.broker_url:
         raise UserError("hvcb worker needs HVCB_BROKER_URL (Celery with Redis)")
-    app = make_celery(settings.broker_url, visibility_timeout_s=settings.celery_visibility_timeout_s)
+    app = make_celery_from_settings(settings)
     app.worker_main(["worker", "--loglevel=INFO", f"--concurrency={args.concurrency}", "--pool=prefork"])
     return 0
 
 
 def cmd_demo(args) -> int:
+    """The embedded demo: a Modbus TCP DAQ emulator on loopback plays the scripted history; the
+    service listens to it through its real acquisition chain (driver → trigger → COMTRADE →
+    ingest → fit job), on SQLite with the local process pool."""
     import uvicorn
 
     from service.api.app import create_app
-    from service.api.demo import DemoScript, play
-    from service.storage import crud
+    from service.api.demo import DemoDaq, DemoScript
+    from service.breaker_file import load_breaker
+    from service.cli import UserError
 
     base = _settings(args)
+    if not base.breakers:
+        raise UserError("the demo needs a breaker file in the settings (`breakers`)")
     demo_dir = base.data_dir / "demo"
     if demo_dir.exists() and not args.keep:
         shutil.rmtree(demo_dir)
-    settings = _settings(args, host=args.host, port=args.port, data_dir=demo_dir, database_url="",
-                         broker_url="", executor="local")
-    _migrate(settings)
-    app = create_app(settings, on_key=_print_key(settings))
-    server = uvicorn.Server(uvicorn.Config(app, host=settings.host, port=settings.port, log_level="warning"))
-    stop = threading.Event()
-    url = f"http://{settings.host}:{settings.port}"
-
-    def feeder():
-        while not server.started and not stop.is_set():
-            time.sleep(0.1)
-        if stop.is_set():
-            return
-        monitor = app.state.monitor
-        with app.state.Session() as session:
-            row = crud.list_breakers(session)[0]
-            breaker_id, breaker = row.id, crud.breaker_model(row)
-
-        def report(n):
-            with app.state.Session() as session, session.begin():
-                crud.report_daq(session, breaker_id=breaker_id, connected=True, captures=n,
-                                detail="demo: scripted history")
-
-        key_file = settings.key_file
-        print(f"\nhvcb demo running at {url}  (API docs: {url}/docs)\n"
-              f"  KEY=$(cat {key_file})\n"
-              f"  curl -s -H \"X-API-Key: $KEY\" {url}/api/v1/breakers/{breaker_id}/health\n"
-              f"  curl -s -H \"X-API-Key: $KEY\" '{url}/api/v1/breakers/{breaker_id}/parameters?name=DO'\n"
-              f"  curl -s -H \"X-API-Key: $KEY\" '{url}/api/v1/alarms?state=active'\n"
-              f"The scripted history: healthy operations, then a buffer oil leak (DO falling). "
-              f"Fits appear within seconds; a DO alarm within about two minutes. Ctrl-C stops.\n", flush=True)
-        sent = play(monitor, breaker_id=breaker_id, breaker=breaker, stop=stop, report_daq=report,
-                    script=DemoScript(interval_s=args.interval))
-        print(f"demo history complete: {sent} operations sent", flush=True)
-
-    thread = threading.Thread(target=feeder, name="hvcb-demo-feeder", daemon=True)
-    thread.start()
+    breaker = load_breaker(base.breakers[0])
+    daq = DemoDaq(breaker, DemoScript(interval_s=args.interval))
+    port = daq.start()
+    acquisition = {"driver": "modbus", "breaker": breaker.name,
+                   "modbus": {"transport": "tcp", "host": "127.0.0.1", "port": port, "poll_interval_s": 0.2}}
     try:
-        server.run()
+        settings = _settings(args, host=args.host, port=args.port, data_dir=demo_dir, database_url="",
+                             broker_url="", executor="local", acquisition=acquisition)
+        _migrate(settings)
+        app = create_app(settings, on_key=_print_key(settings))
+        server = uvicorn.Server(uvicorn.Config(app, host=settings.host, port=settings.port, log_level="warning"))
+        url = f"http://{settings.host}:{settings.port}"
+        stop = threading.Event()
+
+        def announce():
+            while not server.started and not stop.is_set():
+                time.sleep(0.1)
+            if stop.is_set():
+                return
+            print(f"\nhvcb demo running at {url}  (API docs: {url}/docs)\n"
+                  f"  DAQ: Modbus TCP emulator at 127.0.0.1:{port} playing the reference breaker's history\n"
+                  f"  KEY=$(cat {settings.key_file})\n"
+                  f"  curl -s -H \"X-API-Key: $KEY\" {url}/api/v1/breakers/1/health\n"
+                  f"  curl -s -H \"X-API-Key: $KEY\" '{url}/api/v1/breakers/1/parameters?name=DO'\n"
+                  f"  curl -s -H \"X-API-Key: $KEY\" '{url}/api/v1/alarms?state=active'\n"
+                  f"  curl -s {url}/healthz\n"
+                  f"The scripted history: healthy operations, then a buffer oil leak (DO falling). "
+                  f"Fits appear within seconds; a DO alarm within about two minutes. Ctrl-C stops.\n", flush=True)
+            while not stop.wait(1.0):
+                if daq.done.is_set():
+                    print(f"demo history complete: {daq.queued} operations played", flush=True)
+                    return
+
+        thread = threading.Thread(target=announce, name="hvcb-demo-announce", daemon=True)
+        thread.start()
+        try:
+            server.run()
+        finally:
+            stop.set()
+            thread.join(timeout=5)
     finally:
-        stop.set()
-        thread.join(timeout=5)
+        daq.stop()
     return 0

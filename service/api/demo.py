@@ -1,16 +1,20 @@
-"""The embedded demo's scripted history: a healthy baseline, then a slow buffer oil leak.
+"""The embedded demo's DAQ: a Modbus TCP DAQ emulator on loopback playing a scripted history.
 
-Each step is one opening (and every third step a closing too) of the reference breaker,
-synthesised from the project's models with DO falling once the leak starts. The captures go
-through the same path a DAQ capture takes: ``Monitor.ingest`` (durable file → row → fit job).
+The history of the reference breaker: a healthy baseline, then a slow buffer oil leak (DO
+falling). Each operation is made by the virtual prototype with mild physical effects (viscous
+friction, sensor bow, ...) and run-to-run spread of the parameters, and queued in the emulator's
+capture buffer at a modest pace. The service reads it like a real DAQ: Modbus driver → trigger →
+durable COMTRADE → ingest → fit job. Nothing here touches the service; only the Modbus port
+connects the two.
 """
 
 from __future__ import annotations
 
+import asyncio
 import logging
 import threading
-from dataclasses import dataclass
-from datetime import datetime, timezone
+from collections.abc import Iterator
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -18,16 +22,21 @@ from service.acquisition.synthetic import synthesize_capture
 
 log = logging.getLogger("hvcb.demo")
 
+# Mild effects of a real mechanism, per operation (service.mechanics.prototype.Effects fields).
+MILD_EFFECTS = {"open": {"viscous_friction": 0.02, "sensor_nonlinearity": 0.003, "orifice_buffer": 0.05},
+                "close": {"viscous_friction": 0.02, "sensor_nonlinearity": 0.003}}
+
 
 @dataclass(frozen=True)
 class DemoScript:
-    healthy_ops: int = 24          # operations before the leak starts
-    leak_per_op: float = 0.015     # relative DO loss per operation once leaking
+    healthy_ops: int = 24          # openings before the leak starts
+    leak_per_op: float = 0.015     # relative DO loss per opening once leaking
     total_ops: int = 60
     close_every: int = 3           # a closing after every n-th opening
-    interval_s: float = 1.5        # wall time between operations
-    jitter_rel: float = 0.004      # operation-to-operation scatter of the parameters
+    interval_s: float = 2.0        # wall time between operations [s]
+    jitter_rel: float = 0.004      # operation-to-operation scatter of the parameters [-]
     seed: int = 7
+    effects: dict = field(default_factory=lambda: MILD_EFFECTS)
 
     def parameters(self, breaker, i: int, rng) -> dict:
         p = dict(breaker.design_parameters())
@@ -38,24 +47,115 @@ class DemoScript:
         return p
 
 
-def play(monitor, *, breaker_id: int, breaker, script: DemoScript, stop: threading.Event,
-         report_daq=None) -> int:
-    """Feed the scripted history to ``monitor``; returns the operations sent."""
+def _simulators(breaker, effects: dict) -> dict:
+    """The virtual prototype per operation; the reduced model where an effect is refused."""
+    sims = {}
+    try:
+        from service.mechanics.prototype import Effects, make_prototype_simulator
+    except ImportError:
+        return {"open": None, "close": None}
+    for kind in ("open", "close"):
+        try:
+            sims[kind] = make_prototype_simulator(breaker, Effects(**effects.get(kind, {})), kind, method="fast")
+        except (ValueError, TypeError) as exc:
+            log.warning("demo: prototype refused for %s (%s); using the reduced model", kind, exc)
+            sims[kind] = None
+    return sims
+
+
+def history(breaker, script: DemoScript) -> Iterator[tuple[int, str, object]]:
+    """``(opening number, kind, Capture)`` of the scripted history, in order."""
     rng = np.random.default_rng(script.seed)
-    sent = 0
+    sims = _simulators(breaker, script.effects)
     for i in range(script.total_ops):
-        if stop.is_set():
-            break
         p = script.parameters(breaker, i, rng)
-        kinds = ["open"] + (["close"] if (i + 1) % script.close_every == 0 else [])
-        for j, kind in enumerate(kinds):
-            cap, _ = synthesize_capture(breaker, kind, p, rng=rng)
-            t = datetime.now(timezone.utc)
-            cap = type(cap)(**{**cap.__dict__, "start_time": t, "source": f"demo-{kind}-{i}"})
-            monitor.ingest(cap, breaker_id=breaker_id, operation=kind, source="daq")
-            sent += 1
-        if report_daq is not None:
-            report_daq(sent)
-        if stop.wait(script.interval_s):
-            break
-    return sent
+        for kind in ["open"] + (["close"] if (i + 1) % script.close_every == 0 else []):
+            try:
+                cap, _ = synthesize_capture(breaker, kind, p, rng=rng, simulate=sims[kind])
+            except ValueError:  # the prototype did not reach the end position: reduced model
+                cap, _ = synthesize_capture(breaker, kind, p, rng=rng)
+            yield i, kind, cap
+
+
+class DemoDaq:
+    """The Modbus TCP DAQ emulator of the demo, on its own thread and event loop.
+
+    ``start()`` returns the port; captures of the history are queued one per ``interval_s``;
+    ``done`` is set when the history has been queued and downloaded; ``stop()`` ends it.
+    """
+
+    def __init__(self, breaker, script: DemoScript, *, host: str = "127.0.0.1", port: int = 0):
+        self.breaker, self.script, self.host, self.port = breaker, script, host, port
+        self.queued = 0
+        self.done = threading.Event()
+        self.error: BaseException | None = None
+        self._ready = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._stop: asyncio.Event | None = None
+        self.emulator = None
+
+    def start(self, timeout: float = 20.0) -> int:
+        self._thread = threading.Thread(target=self._run, name="hvcb-demo-daq", daemon=True)
+        self._thread.start()
+        if not self._ready.wait(timeout) or self.error is not None:
+            self.stop()
+            raise RuntimeError(f"the demo DAQ emulator did not start: {self.error}")
+        return self.port
+
+    def stop(self) -> None:
+        if self._loop is not None and self._stop is not None:
+            try:
+                self._loop.call_soon_threadsafe(self._stop.set)
+            except RuntimeError:  # loop already closed
+                pass
+        if self._thread is not None:
+            self._thread.join(timeout=15)
+            self._thread = None
+
+    def _run(self) -> None:
+        self._loop = asyncio.new_event_loop()
+        try:
+            self._loop.run_until_complete(self._main())
+        except BaseException as exc:  # reported by start() or the demo command
+            self.error = exc
+            log.exception("demo DAQ emulator failed")
+        finally:
+            self._ready.set()
+            self._loop.close()
+
+    async def _main(self) -> None:
+        from drivers.emulators.modbus_daq import ModbusDaqEmulator
+        from drivers.interface import SampleBlock
+        from drivers.scaling import ChannelScaling
+
+        self._stop = asyncio.Event()
+        em = self.emulator = ModbusDaqEmulator([], transport="tcp", host=self.host, port=self.port,
+                                               scaling=ChannelScaling.from_breaker(self.breaker))
+        await em.start()
+        self.port = em.port
+        self._ready.set()
+        try:
+            sample_index = 0
+            items = history(self.breaker, self.script)
+            while not self._stop.is_set():
+                item = await asyncio.to_thread(next, items, None)
+                if item is None:
+                    break
+                _, _, cap = item
+                em.add_capture(SampleBlock(sample_index, cap.travel, cap.vibration, cap.sample_rate))
+                self.queued += 1
+                sample_index += int(cap.sample_rate * self.script.interval_s)
+                try:
+                    await asyncio.wait_for(self._stop.wait(), self.script.interval_s)
+                except asyncio.TimeoutError:
+                    pass
+            while not self._stop.is_set() and em.stats.captures_acknowledged < self.queued:
+                try:
+                    await asyncio.wait_for(self._stop.wait(), 0.2)
+                except asyncio.TimeoutError:
+                    pass
+            self.done.set()
+            await self._stop.wait()
+        finally:
+            await em.stop()

@@ -59,13 +59,16 @@ class _DbCollector:
         dropped = CounterMetricFamily("hvcb_frames_dropped", "DAQ frames dropped", labels=["breaker"])
         crc = CounterMetricFamily("hvcb_crc_errors", "DAQ frames with a CRC error", labels=["breaker"])
         frames = CounterMetricFamily("hvcb_frames", "DAQ frames received", labels=["breaker"])
+        daq_caps = CounterMetricFamily("hvcb_daq_captures", "operations captured from the DAQ (driver counter)",
+                                       labels=["breaker"])
         conn = GaugeMetricFamily("hvcb_daq_connected", "1 when the DAQ is connected", labels=["breaker"])
         for name, d in daq:
             dropped.add_metric([name], d.frames_dropped)
             crc.add_metric([name], d.crc_errors)
             frames.add_metric([name], d.frames)
+            daq_caps.add_metric([name], d.captures)
             conn.add_metric([name], 1 if d.connected else 0)
-        yield from (dropped, crc, frames, conn)
+        yield from (dropped, crc, frames, daq_caps, conn)
 
 
 class LocalMetrics:

@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Annotated, Literal
 
 import numpy as np
-from fastapi import APIRouter, File, Form, HTTPException, Query, Request, UploadFile
+from fastapi import APIRouter, File, Form, HTTPException, Path as PathParam, Query, Request, UploadFile
 from sqlalchemy.exc import DBAPIError, IntegrityError, OperationalError
 
 from service.acquisition.capture import CaptureError
@@ -22,6 +22,13 @@ from . import schemas as s
 from .deps import AdminDep, MonitorDep, OperatorDep, ReaderDep, SessionDep, SettingsDep
 
 router = APIRouter(prefix="/api/v1")
+
+# Row ids are 32-bit on PostgreSQL: a larger id is a 422, not a database error.
+MAX_ID = 2_147_483_647
+BreakerId = Annotated[int, PathParam(ge=1, le=MAX_ID, description="breaker id")]
+OperationId = Annotated[int, PathParam(ge=1, le=MAX_ID, description="operation id")]
+AlarmId = Annotated[int, PathParam(ge=1, le=MAX_ID, description="alarm id")]
+KeyId = Annotated[int, PathParam(ge=1, le=MAX_ID, description="API key id")]
 
 NOT_FOUND = {404: {"model": s.Message}}
 AUTH = {401: {"model": s.Message}, 403: {"model": s.Message}}
@@ -48,7 +55,7 @@ def list_breakers(session: SessionDep, _: ReaderDep):
 
 @router.get("/breakers/{breaker_id}", response_model=s.BreakerDetail, responses={**AUTH, **NOT_FOUND},
             tags=["breakers"])
-def get_breaker(breaker_id: int, session: SessionDep, _: ReaderDep):
+def get_breaker(breaker_id: BreakerId, session: SessionDep, _: ReaderDep):
     row = _breaker_or_404(session, breaker_id)
     design = crud.breaker_model(row).design_parameters()
     return s.BreakerDetail(**s.BreakerPublic.model_validate(row).model_dump(), breaker_file=row.breaker_file,
@@ -82,7 +89,7 @@ def create_breaker(body: s.BreakerCreate, session: SessionDep, _: AdminDep):
 
 @router.post("/breakers/{breaker_id}/baseline/reset", response_model=s.Message, responses={**AUTH, **NOT_FOUND},
              tags=["breakers"])
-def reset_baseline(breaker_id: int, body: s.BaselineReset, session: SessionDep, settings: SettingsDep,
+def reset_baseline(breaker_id: BreakerId, body: s.BaselineReset, session: SessionDep, settings: SettingsDep,
                    who: AdminDep):
     from service.jobs import reset_baseline as reset
 
@@ -111,7 +118,7 @@ def _latest(row, fit, kind: str) -> s.LatestFit | None:
 
 @router.get("/breakers/{breaker_id}/health", response_model=s.HealthPublic, responses={**AUTH, **NOT_FOUND},
             tags=["breakers"])
-def breaker_health(breaker_id: int, session: SessionDep, settings: SettingsDep, _: ReaderDep):
+def breaker_health(breaker_id: BreakerId, session: SessionDep, settings: SettingsDep, _: ReaderDep):
     from service.jobs import drift_status
 
     row = _breaker_or_404(session, breaker_id)
@@ -132,7 +139,7 @@ def breaker_health(breaker_id: int, session: SessionDep, settings: SettingsDep, 
 
 @router.get("/breakers/{breaker_id}/parameters", response_model=s.TrendPublic, responses={**AUTH, **NOT_FOUND},
             tags=["breakers"])
-def parameter_trend(breaker_id: int, session: SessionDep, _: ReaderDep,
+def parameter_trend(breaker_id: BreakerId, session: SessionDep, _: ReaderDep,
                     name: Annotated[s.ParameterName, Query(description="parameter, e.g. DO")],
                     since: Annotated[datetime | None, Query(description="ISO-8601; UTC when no zone")] = None,
                     limit: Annotated[int, Query(ge=1, le=20000)] = 5000):
@@ -146,7 +153,7 @@ def parameter_trend(breaker_id: int, session: SessionDep, _: ReaderDep,
 
 @router.get("/breakers/{breaker_id}/operations", response_model=list[s.OperationPublic],
             responses={**AUTH, **NOT_FOUND}, tags=["operations"])
-def list_operations(breaker_id: int, session: SessionDep, _: ReaderDep,
+def list_operations(breaker_id: BreakerId, session: SessionDep, _: ReaderDep,
                     limit: Annotated[int, Query(ge=1, le=1000)] = 50):
     _breaker_or_404(session, breaker_id)
     return crud.list_operations(session, breaker_id=breaker_id, limit=limit)
@@ -154,7 +161,7 @@ def list_operations(breaker_id: int, session: SessionDep, _: ReaderDep,
 
 @router.get("/operations/{operation_id}", response_model=s.OperationPublic, responses={**AUTH, **NOT_FOUND},
             tags=["operations"])
-def get_operation(operation_id: int, session: SessionDep, _: ReaderDep):
+def get_operation(operation_id: OperationId, session: SessionDep, _: ReaderDep):
     op = crud.get_operation(session, operation_id=operation_id)
     if op is None:
         raise HTTPException(404, f"no operation {operation_id}")
@@ -163,7 +170,7 @@ def get_operation(operation_id: int, session: SessionDep, _: ReaderDep):
 
 @router.get("/operations/{operation_id}/curve", response_model=s.CurvePublic,
             responses={**AUTH, **NOT_FOUND, 410: {"model": s.Message}}, tags=["operations"])
-def get_curve(operation_id: int, session: SessionDep, _: ReaderDep,
+def get_curve(operation_id: OperationId, session: SessionDep, _: ReaderDep,
               points: Annotated[int, Query(ge=10, le=5000, description="samples returned")] = 1000):
     from service.acquisition.capture_file import read_capture
 
@@ -223,7 +230,7 @@ def _pair_from_zip(blob: bytes, cap: int) -> tuple[bytes, bytes, str]:
 @router.post("/breakers/{breaker_id}/captures", response_model=s.UploadAccepted, status_code=202,
              responses={**AUTH, **NOT_FOUND, 413: {"model": s.Message}, 422: {"model": s.Message}},
              tags=["operations"])
-async def upload_capture(breaker_id: int, request: Request, session: SessionDep, settings: SettingsDep,
+async def upload_capture(breaker_id: BreakerId, request: Request, session: SessionDep, settings: SettingsDep,
                          monitor: MonitorDep, _: OperatorDep,
                          files: Annotated[list[UploadFile], File(description="a .cfg and its .dat, or one .zip")],
                          operation: Annotated[Literal["open", "close"] | None,
@@ -282,13 +289,13 @@ async def upload_capture(breaker_id: int, request: Request, session: SessionDep,
 @router.get("/alarms", response_model=list[s.AlarmPublic], responses=AUTH, tags=["alarms"])
 def list_alarms(session: SessionDep, _: ReaderDep,
                 state: Annotated[Literal["active", "raised", "acknowledged", "cleared", "all"], Query()] = "active",
-                breaker_id: int | None = None):
+                breaker_id: Annotated[int | None, Query(ge=1, le=MAX_ID)] = None):
     return crud.list_alarms(session, state=state, breaker_id=breaker_id)
 
 
 @router.post("/alarms/{alarm_id}/ack", response_model=s.AlarmPublic, responses={**AUTH, **NOT_FOUND,
              409: {"model": s.Message}}, tags=["alarms"])
-def acknowledge_alarm(alarm_id: int, session: SessionDep, settings: SettingsDep, who: OperatorDep,
+def acknowledge_alarm(alarm_id: AlarmId, session: SessionDep, settings: SettingsDep, who: OperatorDep,
                       body: s.AlarmAck | None = None):
     from service.jobs import acknowledge_drift
 
@@ -374,7 +381,7 @@ def create_key(body: s.ApiKeyCreate, session: SessionDep, _: AdminDep):
 
 
 @router.delete("/keys/{key_id}", response_model=s.ApiKeyPublic, responses={**AUTH, **NOT_FOUND}, tags=["keys"])
-def revoke_key(key_id: int, request: Request, session: SessionDep, _: AdminDep):
+def revoke_key(key_id: KeyId, request: Request, session: SessionDep, _: AdminDep):
     from service.storage.models import ApiKeyRow
 
     row = session.get(ApiKeyRow, key_id)

@@ -84,7 +84,7 @@ class CNN1D:
         self.mean_, self.scale_ = X.mean(axis=0), X.std(axis=0) + 1e-9
         Z = (X - self.mean_) / self.scale_
         self.n_classes_ = int(y.max()) + 1
-        epochs = 20 if self.quick else 60
+        epochs = 40 if self.quick else 60
         candidates = [(8, 1e-4)] if self.quick else [(8, 1e-4), (16, 1e-3)]
         tr, va = train_test_split(np.arange(len(y)), test_size=0.2, stratify=y, random_state=self.seed)
         scores = []

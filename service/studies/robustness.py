@@ -29,6 +29,8 @@ def scenarios(spec: DatasetSpec, quick: bool = False) -> list[tuple[str, Dataset
     snrs = (30.0,) if quick else (50.0, 40.0, 30.0)
     for snr in snrs:
         rows.append((f"SNR {snr:.0f} dB", dataclasses.replace(base, noise_rad=noise_for_snr(snr, base))))
+    if not quick:
+        rows.append(("onset jitter ±0.5 ms", dataclasses.replace(base, onset_jitter_s=0.5e-3)))
     for factor in (() if quick else (1.5, 2.0)):
         rows.append((f"effects ×{factor:g} (REALISTIC ×{base.effects_scale * factor:g})",
                      dataclasses.replace(base, effects_scale=base.effects_scale * factor)))

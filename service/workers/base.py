@@ -31,7 +31,7 @@ def make_executor(settings, *, on_result: ResultCallback | None = None) -> Execu
     if kind == "celery":
         from .celery_backend import CeleryExecutor
 
-        return CeleryExecutor(settings.broker_url, options, visibility_timeout_s=settings.celery_visibility_timeout_s)
+        return CeleryExecutor(settings)
     if kind == "inline":
         from .local import InlineExecutor
 

@@ -20,3 +20,16 @@ def slow_fit(capture, breaker, operation, *, dc=None, seed=1):
 
     time.sleep(1.5)
     return fit_capture(capture, breaker, operation, dc=dc, seed=seed)
+
+
+def celery_double(capture, breaker, operation, *, dc=None, seed=1):
+    """For the Celery lane, whose worker runs one fit function for the whole session: the real fit
+    (failing on a capture without motion), paused while the file named by HVCB_TEST_SLOW_FILE
+    exists, so a test can kill the worker in the middle of a fit."""
+    import os
+    from pathlib import Path
+
+    flag = os.environ.get("HVCB_TEST_SLOW_FILE")
+    if flag and Path(flag).exists():
+        time.sleep(2.0)
+    return fails_without_motion(capture, breaker, operation, dc=dc, seed=seed)
