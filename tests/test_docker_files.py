@@ -29,7 +29,8 @@ def test_four_services_with_postgres_and_redis_healthchecks():
 def test_api_and_worker_share_settings_and_the_data_volume():
     for name in ("api", "worker"):
         env = SERVICES[name]["environment"]
-        assert env["DATABASE_URL"] == "postgresql+psycopg://hvcb:hvcb@postgres:5432/hvcb"
+        assert env["DATABASE_URL"] == ("postgresql+psycopg://hvcb:${HVCB_DB_PASSWORD:?set HVCB_DB_PASSWORD}"
+                                       "@postgres:5432/hvcb")
         assert env["HVCB_BROKER_URL"] == "redis://redis:6379/0"
         assert env["HVCB_DATA_DIR"] == "/data"
         assert "hvcb-data:/data" in SERVICES[name]["volumes"]
@@ -62,3 +63,17 @@ def test_dockerfile_installs_the_project_and_serves():
     assert 'CMD ["hvcb", "serve"' in text
     for path in ("pyproject.toml", "service", "drivers", "config", "migrations", "alembic.ini"):
         assert (ROOT / path).exists() and f"COPY {path}" in text
+
+
+def test_no_database_password_ships_and_the_service_accepts_the_compose_url():
+    """compose interpolates the password; the settings must accept a strong one and refuse 'hvcb'."""
+    import pydantic
+
+    from service.settings import Settings
+
+    assert "${HVCB_DB_PASSWORD" in SERVICES["postgres"]["environment"]["POSTGRES_PASSWORD"]
+    url = SERVICES["api"]["environment"]["DATABASE_URL"]
+    strong = url.replace("${HVCB_DB_PASSWORD:?set HVCB_DB_PASSWORD}", "V3ry-l0ng-and-r4ndom-pw")
+    assert Settings(database_url=strong).database_url == strong
+    with pytest.raises(pydantic.ValidationError):
+        Settings(database_url=url.replace("${HVCB_DB_PASSWORD:?set HVCB_DB_PASSWORD}", "hvcb"))

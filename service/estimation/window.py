@@ -188,25 +188,20 @@ def _peak(y, smooth, i_move, fs, operation, noise, stroke):
     if operation == "close":
         # The cam dwell holds θ2 at its maximum: the end is where the rise reaches the settled
         # level, taken robustly from the tail after the motion (not from one noisy sample).
-        tol = max(3.0 * noise / np.sqrt(n_edge), 1e-4)
         motion = y[i_move:]
-        level = float(np.median(motion[-max(motion.size // 4, 8):]))
-        if level < 0.8 * stroke:
+        if float(np.median(motion[-max(motion.size // 4, 8):])) < 0.8 * stroke:
             raise FitError("the closing never reaches its end position within the capture "
                            "(truncated capture or the breaker did not close)")
-        for _ in range(2):  # refine the plateau level on everything after the first arrival
-            reached = np.nonzero(search >= level - tol)[0]
-            if reached.size == 0:
-                raise FitError("cannot find where the closing reaches its end position")
-            level = float(np.median(y[i_move + int(reached[0]):]))
-        reached = np.nonzero(search >= level - tol)[0]
-        if reached.size == 0:
-            raise FitError("cannot find where the closing reaches its end position")
-        i_end = i_move + int(reached[0])
-        return i_end, i_end / fs
+        return _arrival(y, search, i_move, fs, noise, n_edge)
     if i_max >= y.size - n_edge - int(0.002 * fs):
-        raise FitError("the capture ends before the opening reaches its maximum travel "
-                       "(truncated capture)")
+        # No interior peak: an over-damped opening creeps to rest without overtravel. That is
+        # a valid end (where it arrives at rest); still moving at the end is a truncated capture.
+        last = y[-int(0.005 * fs):]
+        drift = abs(np.polyfit(np.arange(last.size) / fs, last, 1)[0]) * 0.005
+        if drift > max(0.002 * stroke, 4.0 * noise / np.sqrt(last.size)):
+            raise FitError("the capture ends before the opening reaches its maximum travel "
+                           "(truncated capture)")
+        return _arrival(y, search, i_move, fs, noise, n_edge)
     half = int(0.006 * fs)
     lo, hi = max(i_max - half, i_move), min(i_max + half, y.size - 1)
     tt = (np.arange(lo, hi + 1) - i_max) / fs
@@ -216,6 +211,24 @@ def _peak(y, smooth, i_move, fs, operation, noise, stroke):
     roots = roots[(roots > tt[0]) & (roots < tt[-1]) & (np.polyval(np.polyder(coef, 2), roots) < 0)]
     t_peak = (i_max + (roots[np.argmin(np.abs(roots))] * fs if roots.size else 0.0)) / fs
     return int(round(t_peak * fs)), float(t_peak)
+
+
+def _arrival(y, search, i_move, fs, noise, n_edge):
+    """Where a motion that ends at rest reaches its settled level: the first time the smoothed
+    curve comes within noise of the plateau, taken robustly from the tail (not one sample)."""
+    tol = max(3.0 * noise / np.sqrt(n_edge), 1e-4)
+    motion = y[i_move:]
+    level = float(np.median(motion[-max(motion.size // 4, 8):]))
+    for _ in range(2):  # refine the plateau level on everything after the first arrival
+        reached = np.nonzero(search >= level - tol)[0]
+        if reached.size == 0:
+            raise FitError("cannot find where the motion reaches its end position")
+        level = float(np.median(y[i_move + int(reached[0]):]))
+    reached = np.nonzero(search >= level - tol)[0]
+    if reached.size == 0:
+        raise FitError("cannot find where the motion reaches its end position")
+    i_end = i_move + int(reached[0])
+    return i_end, i_end / fs
 
 
 def _check_saturation(capture: Capture, i0: int, i1: int, src: str, run: int = 64) -> None:

@@ -70,3 +70,25 @@ def test_fitted_curve_follows_the_measurement(fits, samples_dir, breaker):
     i0, i1 = (int(round(v * cap.sample_rate)) for v in result.window_s)
     resid = cap.travel[i0:i1] - fitted[i0:i1]
     assert np.sqrt(np.mean(resid**2)) == pytest.approx(result.rmse_rad, rel=1e-3)
+
+
+def test_over_damped_opening_that_creeps_to_rest_is_fitted(breaker):
+    """A heavily damped buffer gives no overtravel: the window ends where the travel arrives at rest."""
+    from service.acquisition.capture import Capture
+    from service.acquisition.synthetic import vibration_signature
+    from service.mechanics.opening import opening_angle
+
+    p = dict(breaker.design_parameters(), DO=160.0)  # (CO + DO)² > 4·(AO + EO): over-damped
+    fs = 128_000.0
+    t = np.arange(int(0.2 * fs)) / fs
+    rng = np.random.default_rng(8)
+    theta, omega, _ = opening_angle(t - 0.02, p["AO"], p["BO"], p["DO"], p["EO"], CO=breaker.CO,
+                                    alpha0=breaker.alpha0)
+    theta = np.where(t < 0.02, 0.0, theta)
+    assert np.all(np.diff(theta) >= -1e-12)  # monotone: no interior peak
+    vib = vibration_signature(t, [(0.0196, 420.0, 2500.0)], rng)
+    cap = Capture(travel=theta + rng.normal(0, 0.0015, t.size), sample_rate=fs, vibration=vib,
+                  source="over-damped")
+    result = fit_capture(cap, breaker, "open")
+    for name in ("AO", "BO", "DO", "EO"):
+        assert abs(result.parameters[name] - p[name]) <= 3 * result.stderr[name], name
