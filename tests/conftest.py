@@ -1,4 +1,6 @@
 import os
+import threading
+import time
 from pathlib import Path
 
 import pytest
@@ -24,3 +26,17 @@ def samples_dir():
     if not d.is_dir():
         pytest.skip(f"shared samples not found at {d} (set HVCB_SHARED_DIR)")
     return d
+
+
+@pytest.fixture
+def no_leaked_threads():
+    """Fail a test that leaves a thread running (driver reader threads, emulator writers)."""
+    before = set(threading.enumerate())
+    yield
+    deadline = time.monotonic() + 2.0
+    while True:
+        leaked = [t for t in threading.enumerate() if t not in before and t.is_alive()]
+        if not leaked or time.monotonic() > deadline:
+            break
+        time.sleep(0.01)
+    assert not leaked, f"test leaked threads: {[t.name for t in leaked]}"

@@ -17,7 +17,7 @@ m, s, n: the breaker's baseline mean, sd and size; se_i: the fit's standard erro
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, replace
 from datetime import datetime, timezone
 from typing import Any, Iterable, Mapping
 

@@ -20,7 +20,6 @@ from pathlib import Path
 import numpy as np
 
 from ..estimation import FitError, fit_capture
-from ..mechanics.breaker import CLOSING_PARAMETERS, OPENING_PARAMETERS
 from ..mechanics.trajectory import SimulationError
 from . import report
 from .common import DEFAULT_WORKERS, load_reference, pool_map

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import asyncio
 import json
-import threading
 import time
 
 import numpy as np
@@ -37,18 +36,7 @@ START_TOL_S = 0.5e-3
 END_TOL_S = {"open": 1e-3, "close": 3e-3}
 
 
-@pytest.fixture(autouse=True)
-def no_leaked_threads():
-    """Fail a test that leaves a thread running (driver reader threads, emulator writers)."""
-    before = set(threading.enumerate())
-    yield
-    deadline = time.monotonic() + 2.0
-    while True:
-        leaked = [t for t in threading.enumerate() if t not in before and t.is_alive()]
-        if not leaked or time.monotonic() > deadline:
-            break
-        time.sleep(0.01)
-    assert not leaked, f"test leaked threads: {[t.name for t in leaked]}"
+pytestmark = pytest.mark.usefixtures("no_leaked_threads")
 
 
 @pytest.fixture(scope="module")

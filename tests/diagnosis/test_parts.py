@@ -30,3 +30,19 @@ def test_opening_phases_split_at_alpha0(breaker):
     assert abs(b[0][2] - tr.events["buffer_engaged"]) < 2e-5
     assert b[-1][2] == pytest.approx(tr.t_peak)
     assert all(x[1] <= x[2] for x in b)
+
+
+def test_cam_friction_is_absorbed_into_bc(breaker, make_capture):
+    """Cam friction is exactly BC → BC/η: the identifiability check (projection + polish)
+    finds it absorbed, with the BC bias 1/η − 1."""
+    from service.diagnosis.data import STATE, window_data
+    from service.diagnosis.identifiability import absorption
+    from service.estimation import fit_capture
+
+    cap = make_capture(breaker, "close", seed=141)
+    fr = fit_capture(cap, breaker, "close", seed=1)
+    d = window_data(cap, fr, breaker, "close")
+    x = np.array([fr.parameters[k] for k in STATE["close"]] + [fr.onset_delay_s])
+    a = absorption("cam_friction", x, d, breaker, "close")
+    assert not a["distinguishable"]
+    assert a["parameter_shift"]["BC"] == pytest.approx(100 * (1 / (1 - REALISTIC["cam_friction"]) - 1), abs=1.5)

@@ -84,3 +84,39 @@ def test_margin_reports_ambiguity():
     cands[1]["delta_bic"] = -300.0
     assert decide(cands, True)[0] == "orifice_buffer"
     assert decide(cands, False)[0] == "none"
+
+
+def _cand(effect, delta_bic, **kw):
+    c = dict(effect=effect, delta_bic=delta_bic, distinguishable=True, shrink=0.9, holdout_shrink=0.8,
+             after_p=0.5, worst_phase_shrink=0.9, worst_phase_share=0.6)
+    c.update(kw)
+    return c
+
+
+def test_effect_acting_elsewhere_than_the_gap_is_not_named():
+    """The gap's worst phase carries almost none of the effect's unabsorbed signature: the effect
+    does not act where the gap is, so it is not named, and does not block a credible rival."""
+    wrong = _cand("stribeck_friction", -500.0, worst_phase_share=0.02)
+    assert decide([wrong], True)[0] == "unexplained"
+    right = _cand("orifice_buffer", -495.0)
+    verdict, chosen, ambiguous = decide([wrong, right], True)
+    assert verdict == "orifice_buffer" and chosen is right and not ambiguous
+    # leave-one-effect-out: without the right effect, the wrong-region one is not named
+    assert decide([wrong, right], True, exclude=("orifice_buffer",))[0] == "unexplained"
+
+
+def test_named_effect_must_leave_a_white_residual_and_shrink_the_worst_phase():
+    assert decide([_cand("rod_elasticity", -400.0)], True)[0] == "rod_elasticity"
+    assert decide([_cand("rod_elasticity", -400.0, after_p=1e-6)], True)[0] == "unexplained"
+    assert decide([_cand("rod_elasticity", -400.0, worst_phase_shrink=0.2)], True)[0] == "unexplained"
+
+
+def test_targeted_likelihood_ratio_makes_the_gap_significant():
+    """The omnibus χ² misses a small gap with a shape that one effect's LR test detects; a tiny
+    ΔBIC gain (or one by an absorbed effect without shrink) does not make a gap."""
+    strong = _cand("orifice_buffer", -150.0)
+    assert decide([strong], False)[0] == "orifice_buffer"
+    assert decide([_cand("orifice_buffer", -5.0)], False)[0] == "none"
+    assert decide([_cand("viscous_friction", -8.0, distinguishable=False, shrink=0.1)], False)[0] == "none"
+    # without the effect that made the gap significant, nothing is left to detect it
+    assert decide([strong], False, exclude=("orifice_buffer",))[0] == "none"

@@ -2,26 +2,15 @@
 
 from __future__ import annotations
 
-import threading
-import time
-
 import pytest
 
 from drivers.emulators.sources import synthetic_stream
 
 
 @pytest.fixture(autouse=True)
-def no_leaked_threads():
-    """Fail a test that leaves a thread running (reader threads, emulator writers)."""
-    before = set(threading.enumerate())
+def _thread_guard(no_leaked_threads):
+    """Every driver test fails if it leaves a thread running (guard in tests/conftest.py)."""
     yield
-    deadline = time.monotonic() + 2.0
-    while True:
-        leaked = [t for t in threading.enumerate() if t not in before and t.is_alive()]
-        if not leaked or time.monotonic() > deadline:
-            break
-        time.sleep(0.01)
-    assert not leaked, f"test leaked threads: {[t.name for t in leaked]}"
 
 
 @pytest.fixture(scope="session")

@@ -15,7 +15,7 @@ import pytest
 
 from service.settings import load_settings
 from service.storage import crud
-from service.storage.db import make_engine, session_factory, upgrade
+from service.storage.db import make_engine, upgrade
 
 PG_URL = os.environ.get("HVCB_TEST_POSTGRES_URL")
 REDIS_URL = os.environ.get("HVCB_TEST_REDIS_URL")

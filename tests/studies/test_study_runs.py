@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from service.cli import main
-from service.studies import identifiability, optimizers, sensitivity
+from service.studies import identifiability, optimizers
 from service.studies.commands import run_study
 
 
