@@ -224,6 +224,10 @@ def _finish(operation, names, x, residuals, scale, lower, upper, window, setting
     else:
         jac = _jacobian(residuals, x, scale)
     unc = covariance(jac, window.noise_rad, scale, n_model=len(names) - 1)
+    if x[-1] <= lower[-1] + 1e-9 or x[-1] >= upper[-1] - 1e-9:
+        warnings.append(f"the onset delay sits on its bound ({x[-1] * 1e3:.2f} ms): the start of "
+                        "motion does not match the model, and the confidence intervals understate "
+                        "the uncertainty (run hvcb diagnose)")
     model_names = names[:-1]
     params = {n: float(v) for n, v in zip(model_names, x[:-1])}
     stderr = {n: float(s) for n, s in zip(model_names, unc.stderr[:-1])}

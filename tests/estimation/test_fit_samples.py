@@ -92,3 +92,19 @@ def test_over_damped_opening_that_creeps_to_rest_is_fitted(breaker):
     result = fit_capture(cap, breaker, "open")
     for name in ("AO", "BO", "DO", "EO"):
         assert abs(result.parameters[name] - p[name]) <= 3 * result.stderr[name], name
+
+
+def test_onset_delay_on_its_bound_is_reported(breaker):
+    """A capture whose motion starts at the shock (no latch delay) puts τ on its bound: say so."""
+    cap, _ = synthesize_capture_no_lead(breaker)
+    result = fit_capture(cap, breaker, "open")
+    assert result.onset_delay_s < 1e-6
+    assert any("onset delay sits on its bound" in w for w in result.warnings)
+
+
+def synthesize_capture_no_lead(breaker):
+    from service.acquisition.synthetic import synthesize_capture
+
+    # The shock comes 0.3 ms AFTER motion starts: the best τ would be negative.
+    return synthesize_capture(breaker, "open", breaker.design_parameters(),
+                              rng=np.random.default_rng(12), shock_lead_s=-0.3e-3)
