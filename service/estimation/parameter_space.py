@@ -48,7 +48,7 @@ class ParameterSpace:
         """Steps 5–6 of the paper: shift an edge-bound range so the estimate is interior.
 
         The range keeps its width and is re-centred on the estimate; a parameter that must stay
-        positive is never shifted below zero.
+        positive keeps a strictly positive lower bound.
         """
         x = np.asarray(x, dtype=float)
         u = self.to_unit(x)
@@ -57,7 +57,7 @@ class ParameterSpace:
             if name in fixed or EDGE <= u[i] <= 1 - EDGE:
                 continue
             width = hi[i] - lo[i]
-            lo[i] = max(x[i] - 0.5 * width, 0.0 if self.lo[i] >= 0 else -np.inf)
+            lo[i] = max(x[i] - 0.5 * width, 1e-3 * width if self.lo[i] > 0 else -np.inf)
             hi[i] = lo[i] + width
         return ParameterSpace(self.names, lo, hi)
 

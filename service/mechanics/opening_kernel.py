@@ -12,7 +12,7 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _segment(tau, a, c, f, x0, v0):
     sigma = 0.5 * c
     w2 = a - sigma * sigma
@@ -34,7 +34,7 @@ def _segment(tau, a, c, f, x0, v0):
     return xe + e * (c1 * C + c2 * S), e * ((c2 - sigma * c1) * C - (sigma * c2 + w2 * c1) * S)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _crossing(AO, BO, CO, alpha0, t_end):
     """Exact first time the pre-buffer segment reaches α0 (NaN if it never does by t_end)."""
     sigma = 0.5 * CO
@@ -60,7 +60,7 @@ def _crossing(AO, BO, CO, alpha0, t_end):
     return ts
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def opening_curves(X, t, spread, CO, alpha0, with_buffer):
     """Opening angle [rad] for each row of X at times ``t`` [s since the window start].
 
