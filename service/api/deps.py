@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from typing import Annotated
 
 from fastapi import Depends, HTTPException, Request, Security
+from fastapi.concurrency import run_in_threadpool
 from fastapi.security import APIKeyHeader
 from sqlalchemy.exc import DBAPIError, OperationalError
 from sqlalchemy.orm import Session
@@ -24,7 +25,7 @@ def get_session(request: Request) -> Iterator[Session]:
         yield session
 
 
-def get_settings(request: Request) -> Settings:
+async def get_settings(request: Request) -> Settings:
     return request.app.state.settings
 
 
@@ -71,7 +72,8 @@ def require(role: str):
     """Dependency: 401 without a valid key, 403 when the key's role is below ``role``."""
     need = crud.ROLE_RANK[role]
 
-    def dependency(request: Request, key: Annotated[str | None, Security(api_key_header)]) -> Principal:
+    async def dependency(request: Request, key: Annotated[str | None, Security(api_key_header)]) -> Principal:
+        # Async so that a cached key costs no threadpool hop; only a miss touches the database.
         if not key:
             raise HTTPException(401, "missing API key: send it in the X-API-Key header",
                                 headers={"WWW-Authenticate": "APIKey"})
@@ -79,20 +81,24 @@ def require(role: str):
         digest = crud.hash_key(key)
         principal = cache.get(digest)
         if principal is None:
-            try:
-                with request.app.state.Session() as session:
-                    row = crud.find_api_key(session, key=key)
-            except (OperationalError, DBAPIError):
-                raise HTTPException(503, "database unavailable; try again shortly") from None
-            if row is None:
-                raise HTTPException(401, "unknown or revoked API key", headers={"WWW-Authenticate": "APIKey"})
-            principal = Principal(row.id, row.name, row.role)
+            principal = await run_in_threadpool(_lookup, request, key)
             cache.put(digest, principal)
         if crud.ROLE_RANK[principal.role] < need:
             raise HTTPException(403, f"this needs the {role} role; the key has {principal.role}")
         return principal
 
     return dependency
+
+
+def _lookup(request: Request, key: str) -> Principal:
+    try:
+        with request.app.state.Session() as session:
+            row = crud.find_api_key(session, key=key)
+    except (OperationalError, DBAPIError):
+        raise HTTPException(503, "database unavailable; try again shortly") from None
+    if row is None:
+        raise HTTPException(401, "unknown or revoked API key", headers={"WWW-Authenticate": "APIKey"})
+    return Principal(row.id, row.name, row.role)
 
 
 ReaderDep = Annotated[Principal, Depends(require("reader"))]

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import io
 import tempfile
+import time
 import tomllib
 import zipfile
 from datetime import datetime, timedelta, timezone
@@ -12,6 +13,8 @@ from typing import Annotated, Literal
 
 import numpy as np
 from fastapi import APIRouter, File, Form, HTTPException, Path as PathParam, Query, Request, UploadFile
+from fastapi.concurrency import run_in_threadpool
+from fastapi.responses import Response
 from sqlalchemy.exc import IntegrityError
 
 from service.acquisition.capture import CaptureError
@@ -316,21 +319,21 @@ SCADA_CACHE_S = 1.0  # pollers ask every few seconds; fits land every few minute
 
 
 @router.get("/scada/points", response_model=list[s.ScadaPoint], responses=AUTH, tags=["scada"])
-def scada_points(request: Request, settings: SettingsDep, _: ReaderDep):
+async def scada_points(request: Request, settings: SettingsDep, _: ReaderDep):
     """Flat point list for SCADA pollers (computed at most once per second)."""
-    import time as _time
-
-    from fastapi.responses import Response
-
     cached = getattr(request.app.state, "scada_cache", None)
-    now_m = _time.monotonic()
+    now_m = time.monotonic()
     if cached is None or cached[0] < now_m:
-        with request.app.state.Session() as session:
-            points = _scada_points(session, settings)
-        body = s.ScadaPointList(points).model_dump_json().encode()
+        body = await run_in_threadpool(_scada_body, request, settings)
         cached = (now_m + SCADA_CACHE_S, body)
         request.app.state.scada_cache = cached
     return Response(cached[1], media_type="application/json")
+
+
+def _scada_body(request: Request, settings) -> bytes:
+    with request.app.state.Session() as session:
+        points = _scada_points(session, settings)
+    return s.ScadaPointList(points).model_dump_json().encode()
 
 
 def _scada_points(session, settings) -> list[s.ScadaPoint]:
