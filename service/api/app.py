@@ -62,6 +62,7 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
     called with a newly generated admin key (the commands print it)."""
     from service.monitor import Monitor
     from service.workers import make_executor
+    from service.workers.diagnoses import DiagnosisRunner
 
     from .daq import DaqRunner
 
@@ -78,6 +79,7 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
         monitor = Monitor(settings, Session, ex)
         daq = DaqRunner(settings, Session, monitor)
         app.state.engine, app.state.Session, app.state.monitor, app.state.daq = engine, Session, monitor, daq
+        app.state.diagnoses = DiagnosisRunner(settings.sqlalchemy_url)
         if start_monitor:
             monitor.start()
             try:
@@ -88,6 +90,7 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
         try:
             yield
         finally:
+            app.state.diagnoses.shutdown()
             if start_monitor:
                 daq.stop()
                 monitor.stop()

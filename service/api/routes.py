@@ -171,6 +171,36 @@ def get_operation(operation_id: OperationId, session: SessionDep, _: ReaderDep):
     return op
 
 
+@router.get("/operations/{operation_id}/diagnosis", response_model=s.DiagnosisPublic,
+            responses={**AUTH, **NOT_FOUND, 202: {"model": s.DiagnosisPublic,
+                                                  "description": "queued or running: ask again"}},
+            tags=["operations"])
+def get_diagnosis(operation_id: OperationId, request: Request, response: Response, session: SessionDep,
+                  _: ReaderDep):
+    """Sim-to-real gap diagnosis of the operation (`hvcb diagnose`), computed on demand as a job:
+    the first request queues it and answers 202; ask again until the status is done or failed."""
+    from sqlalchemy import select
+
+    from service.storage.models import DiagnosisRow
+
+    if crud.get_operation(session, operation_id=operation_id) is None:
+        raise HTTPException(404, f"no operation {operation_id}")
+    query = select(DiagnosisRow).where(DiagnosisRow.operation_id == operation_id)
+    row = session.scalars(query).one_or_none()
+    if row is None:
+        try:
+            session.add(DiagnosisRow(operation_id=operation_id, status="queued"))
+            session.commit()
+        except IntegrityError:  # a concurrent request queued it first
+            session.rollback()
+        row = session.scalars(query).one()
+    if row.status in ("queued", "running"):
+        request.app.state.diagnoses.ensure(operation_id)
+        response.status_code = 202
+    return s.DiagnosisPublic(operation_id=operation_id, status=row.status, requested_at=row.requested_at,
+                             finished_at=row.finished_at, failure_reason=row.failure_reason, result=row.result)
+
+
 @router.get("/operations/{operation_id}/curve", response_model=s.CurvePublic,
             responses={**AUTH, **NOT_FOUND, 410: {"model": s.Message}}, tags=["operations"])
 def get_curve(operation_id: OperationId, session: SessionDep, _: ReaderDep,

@@ -211,5 +211,14 @@ class BaselineReset(BaseModel):
     reason: str = Field("maintenance", max_length=500)
 
 
+class DiagnosisPublic(BaseModel):
+    operation_id: int
+    status: str = Field(description="queued | running | done | failed")
+    requested_at: datetime
+    finished_at: datetime | None = None
+    failure_reason: str | None = None
+    result: dict | None = Field(None, description="the `hvcb diagnose --json` object: gap, candidates, verdict, ...")
+
+
 class Message(BaseModel):
     detail: str

@@ -119,6 +119,19 @@ class FitRow(Base):
     operation: Mapped[OperationRow] = relationship(back_populates="fit")
 
 
+class DiagnosisRow(Base):
+    """The sim-to-real gap diagnosis of one operation, computed on demand (one per operation)."""
+
+    __tablename__ = "diagnoses"
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    operation_id: Mapped[int] = mapped_column(ForeignKey("operations.id", ondelete="CASCADE"), unique=True)
+    status: Mapped[str] = mapped_column(String(10), default="queued")  # queued | running | done | failed
+    result: Mapped[dict | None]
+    failure_reason: Mapped[str | None] = mapped_column(Text)
+    requested_at: Mapped[datetime] = mapped_column(default=utcnow)
+    finished_at: Mapped[datetime | None]
+
+
 class ParameterValueRow(Base):
     """One fitted parameter of one operation: the trend and SCADA tables read these."""
 
