@@ -49,10 +49,12 @@ def fit_reduced(x0, data, breaker, operation, mask=None, max_nfev=MAX_NFEV) -> F
 
 def fit_augmented(base: Fit, data, breaker, operation, effect: str, mask=None,
                   strength: float | None = None, *, start: Fit | None = None,
-                  max_nfev: int = MAX_NFEV) -> Fit:
+                  max_nfev: int = MAX_NFEV, cold: bool = True) -> Fit:
     """Fit state parameters, τ and ``effect``'s strength (or hold ``strength`` fixed).
 
-    ``start`` warm-starts the fit (the refinement of a screened candidate). The result is never
+    ``start`` warm-starts the fit (the refinement of a screened candidate); ``cold`` adds a
+    strong cold start to it (skipped when the screened fit already explains most of the gap,
+    to bound the runtime). The result is never
     worse than ``base`` on the fitted blocks: when the optimiser stops early above the reduced
     model's cost, the reduced fit is returned with strength 0 (the effect explains nothing), so
     in-sample shrinks are not negative artefacts of an unconverged fit.
@@ -77,13 +79,13 @@ def fit_augmented(base: Fit, data, breaker, operation, effect: str, mask=None,
     if start is not None:
         # refinement: from the screened solution and from a strong cold start (the screened fit
         # can sit in a shallow local minimum near zero strength)
-        starts = [(base.x, 1.5 * REALISTIC[effect])]
+        starts = [(base.x, 1.5 * REALISTIC[effect])] if cold or start.strength <= 0 else []
         if start.strength > 0:
             starts.insert(0, (start.x, start.strength))
     else:  # cold start (also when the screened fit fell back to the reduced model)
         starts = [(base.x, 0.3 * REALISTIC[effect])]
-        if effect == "rod_elasticity":
-            starts.append((base.x, 1.5 * REALISTIC[effect]))  # the rod's ringing is multimodal
+        if effect == "rod_elasticity":  # the rod's ringing is multimodal in its frequency
+            starts += [(base.x, 0.7 * REALISTIC[effect]), (base.x, 1.5 * REALISTIC[effect])]
     best = None
     for x0, s0 in starts:
         z0 = np.append(np.clip(x0, lo, hi), min(max(s0, s_lo), s_hi))

@@ -1,10 +1,14 @@
 """``diagnose``: where the reduced model misses (phases), which catalogued effect explains it
 (augmented fits, likelihood ratio, ΔBIC, hold-out), and how far it shrinks.
 
-The verdict names an effect only when (1) the gap is significant (χ² excess over the noise
-floor and a non-white residual), (2) the effect is distinguishable from a parameter change at
-this noise level, (3) ΔBIC < −10 with shrink ≥ 50 %, and (4) it holds out: on other captures
-when there are several, else on the held-out alternate 4 ms chunks of the window.
+The verdict names an effect only when (1) the gap is significant: χ² excess over the noise
+floor with a non-white residual, or a targeted likelihood-ratio test (some effect's ΔBIC <
+−10); (2) the effect is distinguishable from a parameter change at this noise level; (3) ΔBIC
+< −10 with shrink ≥ 50 %, also in the worst phase; (4) it acts where the gap is (the worst
+phase is in its catalogue region or carries a fair share of its unabsorbed signature) and
+explains the gap phase by phase; (5) it holds out: on other captures when there are several,
+else on the held-out alternate 4 ms chunks of the window; (6) no other credible effect comes
+within the ΔBIC margin.
 """
 
 from __future__ import annotations
@@ -16,12 +20,12 @@ from scipy.stats import chi2
 
 from ..mechanics.breaker import Breaker
 from ..mechanics.coordinates import operation_coordinate
-from ..mechanics.prototype import EFFECT_NAMES, OPERATIONS
+from ..mechanics.prototype import EFFECT_NAMES, OPERATIONS, REGIONS
 from .augmented import fit_augmented, fit_reduced, state_dict
 from .data import STATE, block_residual, gap_rms, model_curve, window_data
 from .identifiability import absorption, jacobian
 from .phases import phase_bounds
-from .residuals import excess_p, phase_stats, whiteness
+from .residuals import phase_stats, whiteness
 
 CHUNK_S = 4e-3          # hold-out chunk length [s]
 MIN_SHRINK = 0.5
@@ -35,6 +39,11 @@ REFINE_TOP = 3          # screened candidates refitted to convergence
 REFINE_NFEV = 40
 MARGIN_BIC = 10.0       # the verdict must beat the runner-up's ΔBIC by this much ...
 MARGIN_REL = 0.02       # ... and by this fraction of its own |ΔBIC|
+BASE_NFEV = 30          # polish of the reduced baseline
+COLD_BELOW = 0.8        # refinement also tries a cold start when the screened shrink is below
+AFTER_P = 1e-3          # residual after the named effect's fit: phase-wise χ² (Bonferroni)
+MIN_WORST_SHRINK = 0.5  # the gap in the worst phase must shrink this much
+MIN_REGION_SHARE = 0.2  # ... or this share of its unabsorbed signature in the worst phase
 
 
 class DiagnosisError(ValueError):
@@ -86,7 +95,7 @@ def diagnose(captures, breaker: Breaker, operation: str, *, effects=None, seed: 
         x0 = np.array([fr.parameters[k] for k in STATE[operation]] + [fr.onset_delay_s])
         fits.append(fr)
         datas.append(data)
-        bases.append(fit_reduced(x0, data, breaker, operation))
+        bases.append(_baseline(x0, data, breaker, operation))
     single = len(captures) == 1
     masks = [_chunk_mask(d) if single else np.ones(d.t.size, bool) for d in datas]
     bases_in = [fit_reduced(b.x, d, breaker, operation, m) if single else b
@@ -104,22 +113,30 @@ def diagnose(captures, breaker: Breaker, operation: str, *, effects=None, seed: 
                    and gap["gap_rad"] >= MIN_GAP_NOISE * gap["noise_rad"])
 
     # Absorbed or distinguishable, at this capture's noise and fitted state.
+    bounds = [_bounds_of(b, d, breaker, operation) for b, d in zip(bases, datas)]
     base_curve, J = jacobian(bases[0].x, datas[0], breaker, operation)
-    ident = {n: absorption(n, bases[0].x, datas[0], breaker, operation, base_curve, J) for n in catalogue}
+    ident = {n: absorption(n, bases[0].x, datas[0], breaker, operation, base_curve, J, bounds[0])
+             for n in catalogue}
+    worst = max(gap["phases"], key=lambda p: p["ratio_to_noise"])["name"]
+    ctx = {"bounds": bounds, "worst": worst, "phases0": [pc["phases"] for pc in per_capture],
+           "operation": operation}
 
     # Which: augmented fits, screened with a few evaluations, then the leading candidates
     # (distinguishable ones first) refitted to convergence from their screened solution.
     candidates = []
     for name in catalogue:
-        candidates.append(_candidate(name, datas, bases_in, masks, breaker, operation, single, ident[name]))
+        candidates.append(_candidate(name, datas, bases_in, masks, breaker, operation, single, ident[name],
+                                     ctx=ctx))
     candidates.sort(key=lambda c: (not c["distinguishable"], c["delta_bic"]))
     for i, c in enumerate(candidates[:REFINE_TOP]):
         if c["delta_bic"] < 0:
             candidates[i] = _candidate(c["effect"], datas, bases_in, masks, breaker, operation, single,
-                                       ident[c["effect"]], starts=c["_fits"], max_nfev=REFINE_NFEV)
+                                       ident[c["effect"]], starts=c["_fits"], max_nfev=REFINE_NFEV, ctx=ctx,
+                                       cold=c["shrink"] < COLD_BELOW)
     candidates.sort(key=lambda c: c["delta_bic"])
 
     verdict, chosen, ambiguous = decide(candidates, significant)
+    significant_lr = lr_significant(candidates)
 
     how_far = None
     if chosen is not None:
@@ -147,7 +164,9 @@ def diagnose(captures, breaker: Breaker, operation: str, *, effects=None, seed: 
         "operation": operation, "breaker": breaker.name, "captures": [
             {"source": d.source, "reduced_parameters": state_dict(b, operation),
              "onset_delay_s": float(b.x[-1]), **pc} for d, b, pc in zip(datas, bases, per_capture)],
-        "gap": gap, "significant_gap": bool(significant), "candidates": candidates,
+        "gap": gap, "significant_gap": bool(significant or significant_lr),
+        "significant_chi2": bool(significant), "significant_lr": bool(significant_lr),
+        "worst_phase": worst, "candidates": candidates,
         "verdict": verdict, "ambiguous": ambiguous, "how_far": how_far, "absorbed": absorbed,
         "identifiability": list(ident.values()), "warnings": warnings,
         "holdout": "alternate 4 ms chunks of the window" if single else "leave one capture out",
@@ -157,30 +176,51 @@ def diagnose(captures, breaker: Breaker, operation: str, *, effects=None, seed: 
 
 def qualifies(c) -> bool:
     """A candidate that could be the verdict on its own: distinguishable, ΔBIC < −10, shrink ≥
-    50 % and hold-out shrink ≥ 40 %."""
+    50 %, hold-out shrink ≥ 40 %, the gap in the worst phase shrinks by ≥ 50 %, and it is a
+    :func:`credible` explanation (acts where the gap is, explains it phase by phase)."""
     return bool(c["distinguishable"] and c["delta_bic"] < MAX_DELTA_BIC and c["shrink"] >= MIN_SHRINK
-                and c["holdout_shrink"] >= MIN_HOLDOUT)
+                and c["holdout_shrink"] >= MIN_HOLDOUT and credible(c)
+                and c.get("worst_phase_shrink", 1.0) >= MIN_WORST_SHRINK)
+
+
+def credible(c) -> bool:
+    """The effect is a physically credible explanation of this gap: it acts where the gap is
+    (the worst phase is in its catalogue region or holds ≥ MIN_REGION_SHARE of its unabsorbed
+    signature), and it explains the gap phase by phase: the residual after its fit is at the
+    noise floor (Bonferroni p ≥ AFTER_P), or every phase with a significant gap shrinks by
+    ≥ MIN_SHRINK (a large gap fitted to within a few per cent is not white, yet explained)."""
+    return bool(c.get("in_region", True)
+                and (c.get("after_p", 1.0) >= AFTER_P or c.get("phase_shrink_min", 1.0) >= MIN_SHRINK))
+
+
+def lr_significant(candidates, exclude=()) -> bool:
+    """The gap is significant by a targeted test: some catalogued effect's likelihood-ratio test
+    against the reduced model gives ΔBIC < MAX_DELTA_BIC (LR > 10 + ln n; p < 1e-4 per effect,
+    < GAP_P over the catalogue). More powerful than the omnibus χ² when the gap has a shape."""
+    return any(c["delta_bic"] < MAX_DELTA_BIC for c in candidates if c["effect"] not in exclude)
 
 
 def decide(candidates, significant: bool, exclude=()):
     """The verdict from the candidates (any order): ``(verdict, chosen candidate or None,
     ambiguous effect names)``.
 
+    ``significant`` is the omnibus test (χ² excess, Ljung–Box, size); the gap is also
+    significant when :func:`lr_significant` holds on the catalogue left after ``exclude``.
     ``none`` without a significant gap. Otherwise the best qualifying candidate (lowest ΔBIC),
-    provided it beats every other distinguishable candidate with ΔBIC < −10 by a margin of
-    max(MARGIN_BIC, MARGIN_REL·|ΔBIC|); if a rival comes that close the verdict is
+    provided it beats every other credible distinguishable candidate with ΔBIC < −10 by a
+    margin of max(MARGIN_BIC, MARGIN_REL·|ΔBIC|); if a rival comes that close the verdict is
     ``unexplained`` and both are listed as ``ambiguous`` (never a confident guess between two
     effects that explain the gap equally well). ``exclude`` drops effects from the catalogue
     (the leave-one-effect-out check).
     """
-    if not significant:
-        return "none", None, []
     pool = sorted((c for c in candidates if c["effect"] not in exclude), key=lambda c: c["delta_bic"])
+    if not (significant or lr_significant(pool)):
+        return "none", None, []
     best = next((c for c in pool if qualifies(c)), None)
     if best is None:
         return "unexplained", None, []
     margin = max(MARGIN_BIC, MARGIN_REL * abs(best["delta_bic"]))
-    rivals = [c["effect"] for c in pool if c is not best and c["distinguishable"]
+    rivals = [c["effect"] for c in pool if c is not best and c["distinguishable"] and credible(c)
               and c["delta_bic"] < MAX_DELTA_BIC and c["delta_bic"] < best["delta_bic"] + margin]
     if rivals:
         return "unexplained", None, [best["effect"]] + rivals
@@ -237,8 +277,10 @@ def _shrink(r0, r1, count, noise):
 
 
 def _candidate(name, datas, bases, masks, breaker, operation, single, ident, starts=None,
-               max_nfev=None):
+               max_nfev=None, ctx=None, cold=True):
     kw = {} if max_nfev is None else {"max_nfev": max_nfev}
+    if starts is not None:
+        kw["cold"] = cold
     starts = starts or [None] * len(datas)
     aug = [fit_augmented(b, d, breaker, operation, name, m, start=s0, **kw)
            for b, d, m, s0 in zip(bases, datas, masks, starts)]
@@ -271,7 +313,71 @@ def _candidate(name, datas, bases, masks, breaker, operation, single, ident, sta
             "delta_bic": float(-lr + k * np.log(n)), "lr_p_value": float(chi2.sf(max(lr, 0.0), k)),
             "holdout_shrink": holdout, "distinguishable": ident["distinguishable"],
             "parameter_shift": {kk: float(100 * (new_p[kk] / base_p[kk] - 1)) for kk in base_p},
-            "_fits": aug}
+            **_after_checks(r1, datas, bases, ctx, ident), "_fits": aug}
+
+
+def _after_checks(r1, datas, bases, ctx, ident):
+    """Where the candidate leaves the residual, on the first capture's phases:
+
+    - ``after_p``: χ² p of the residual after its fit, Bonferroni over the phases (and captures);
+    - ``worst_phase_shrink``: the shrink of the gap in the baseline's worst phase;
+    - ``phase_shrink_min``: the smallest shrink over the phases where the baseline gap was
+      significant (p < GAP_P) — the effect must explain the gap wherever it is;
+    - ``worst_phase_share``: the share of the effect's unabsorbed signature (identifiability
+      check) lying in the worst phase;
+    - ``in_region``: the worst phase is in the catalogue's region of the effect (REGIONS), or
+      carries ≥ MIN_REGION_SHARE of its unabsorbed signature.
+    """
+    if ctx is None:
+        return {}
+    ps, out = [], {}
+    for i, (r, d, b, bnd) in enumerate(zip(r1, datas, bases, ctx["bounds"])):
+        st = phase_stats(r, d, bnd, b.x[-1])
+        ps += [p["p_value"] for p in st if p["samples"] > 0]
+        if i == 0:
+            shr = {}
+            for p0, p1 in zip(ctx["phases0"][0], st):
+                g0, g1 = p0["gap_rad"], p1["gap_rad"]
+                shr[p0["name"]] = (0.0 if g0 <= 0 else float(1.0 - g1 / g0), p0["p_value"] < GAP_P, p1)
+            out["worst_phase_shrink"] = shr[ctx["worst"]][0]
+            sig = [v[0] for v in shr.values() if v[1]]
+            out["phase_shrink_min"] = float(min(sig)) if sig else 1.0
+    out["after_p"] = float(min(1.0, len(ps) * min(ps))) if ps else 1.0
+    share = float(ident.get("phase_share", {}).get(ctx["worst"], 1.0))
+    out["worst_phase_share"] = share
+    out["in_region"] = bool(ctx["worst"] in REGIONS[ctx["operation"]].get(ident["effect"], ())
+                            or share >= MIN_REGION_SHARE)
+    return out
+
+
+def _baseline(x0, data, breaker, operation):
+    """The reduced fit polished from the estimator's solution and, when that leaves a
+    significant excess, also from the breaker's design state (τ from a coarse scan): the lower
+    cost wins. An unconverged or locally-trapped baseline otherwise shows up as a spurious gap
+    that any effect with a free strength 'explains' (a cam-friction capture named viscous)."""
+    best = fit_reduced(x0, data, breaker, operation, max_nfev=BASE_NFEV)
+    cost = float(np.sum(block_residual(best.x, data, breaker, operation) ** 2))
+    if chi2.sf(cost, data.t.size) >= GAP_P:
+        return best
+    design = breaker.design_parameters()
+    xd = np.array([design[k] for k in STATE[operation]] + [0.0])
+    taus = np.linspace(-1.5e-3, 4.5e-3, 25)
+    costs = []
+    for tau in taus:
+        xd[-1] = tau
+        costs.append(float(np.sum(block_residual(xd, data, breaker, operation) ** 2)))
+    xd[-1] = taus[int(np.argmin(costs))]
+    alt = fit_reduced(xd, data, breaker, operation, max_nfev=BASE_NFEV)
+    alt_cost = float(np.sum(block_residual(alt.x, data, breaker, operation) ** 2))
+    if alt_cost < cost:
+        return alt
+    return best
+
+
+def _bounds_of(fit, d, breaker, operation):
+    tm = d.t - fit.x[-1]
+    theta, _ = model_curve(fit.x, d, breaker, operation, None)
+    return phase_bounds(operation, tm, theta, float(tm[-1]), breaker)
 
 
 def _plausibility(bases, breaker, operation):

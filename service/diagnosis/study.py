@@ -115,11 +115,15 @@ def _run_one(job: dict) -> dict:
     worst = max(phases, key=lambda p: p["ratio_to_noise"])["name"]
     ident = {v["effect"]: bool(v["distinguishable"]) for v in res["identifiability"]}
     cands = [{k: c[k] for k in ("effect", "delta_bic", "shrink", "holdout_shrink", "distinguishable",
-                                "strength")} for c in res["candidates"]]
+                                "strength", "after_p", "worst_phase_shrink", "worst_phase_share", "phase_shrink_min",
+                                "in_region")
+              if k in c} for c in res["candidates"]]
     true_c = next((c for c in cands if c["effect"] == truth), None)
-    loo = decide(res["candidates"], res["significant_gap"], exclude=(truth,))[0] if truth != "none" else None
+    sig_chi2 = res.get("significant_chi2", res["significant_gap"])
+    loo = decide(res["candidates"], sig_chi2, exclude=(truth,))[0] if truth != "none" else None
     return {**_public(job), "file": str(cfg.name), "verdict": res["verdict"], "state_redraws": redraws,
             "ambiguous": res.get("ambiguous", []), "significant_gap": res["significant_gap"],
+            "significant_chi2": sig_chi2,
             "gap_ratio": res["gap"]["ratio_to_noise"], "worst_phase": worst,
             "worst_in_region": (worst in REGIONS[op][truth]) if truth != "none" else None,
             "true_distinguishable": ident.get(truth) if truth != "none" else None,

@@ -94,3 +94,18 @@ def test_unknown_effect_and_no_capture(breaker, make_capture):
     cap = make_capture(breaker, "open", seed=119)
     with pytest.raises(DiagnosisError, match="unknown effect"):
         diagnose([cap], breaker, "open", effects=["magic"])
+
+
+def test_buffer_gap_names_the_buffer_not_a_wrong_region_effect(breaker, make_capture):
+    """An orifice-buffer opening: the gap lies on the approach to maximum travel. A small
+    Stribeck friction fits it almost as well (ΔBIC within the margin) but its unabsorbed
+    signature is not there, so it neither wins nor blocks; without the buffer in the catalogue
+    (leave-one-effect-out) the verdict is `unexplained`, not the wrong effect."""
+    cap = make_capture(breaker, "open", Effects(orifice_buffer=0.6), seed=123)
+    full = diagnose([cap], breaker, "open", effects=["orifice_buffer", "stribeck_friction", "puffer_gas"])
+    assert full["worst_phase"] == "approach"
+    assert full["verdict"] == "orifice_buffer"
+    stribeck = next(c for c in full["candidates"] if c["effect"] == "stribeck_friction")
+    assert stribeck["delta_bic"] < -100 and not stribeck["in_region"]
+    loo = diagnose([cap], breaker, "open", effects=["stribeck_friction", "puffer_gas"])
+    assert loo["verdict"] == "unexplained"
