@@ -26,6 +26,18 @@ from .data import STATE, model_curve
 
 MIN_CHI2 = 100.0
 MIN_RMS_NOISE = 0.3
+
+
+def _cam_friction_state(x, strength, operation):
+    """cam_friction is exactly BC -> BC/η with η = 1 − strength (see prototype/cam_friction.py)."""
+    y = np.array(x, float)
+    y[STATE[operation].index("BC")] /= 1.0 - strength
+    return y
+
+
+# Effects that are an exact re-parametrisation of the state: the mapped state is tried as a start,
+# so the check cannot miss the absorption by landing in a wrong basin.
+EXACT_EQUIVALENCE = {"cam_friction": _cam_friction_state}
 REFIT_NFEV = 8
 
 
@@ -87,6 +99,8 @@ def absorption(effect, x, data, breaker, operation, base=None, J=None, bounds=No
                 and np.all(x_lin > lo) and np.all(x_lin < hi))
     best = None
     starts = [x, x_lin] if sane else [x]
+    if effect in EXACT_EQUIVALENCE:
+        starts.append(EXACT_EQUIVALENCE[effect](x, REALISTIC[effect], operation))
     for xc in starts:
         r = m - model_curve(xc, data, breaker, operation, None)[0]
         c2 = float(np.sum((r * w) ** 2))

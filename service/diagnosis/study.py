@@ -11,8 +11,9 @@ closings; the controls are half openings, half closings. Every capture is writte
 Reported (``gap.json``, ``gap.md``, ``gap_confusion.png``):
 
 - the confusion matrix (true effect or ``none`` × verdict);
-- which effects the study shows distinguishable at realistic strength (the diagnoser's own
-  identifiability check said so on most of that effect's captures) and which absorbed;
+- which effects the study shows distinguishable at realistic strength, per operation (the
+  diagnoser's own identifiability check said so on most of that effect's captures on that
+  operation) and which absorbed;
 - top-1 accuracy over the captures of the distinguishable effects;
 - for absorbed effects: how often the effect is listed in ``absorbed`` and how often a wrong
   effect is named (``confident_wrong``);
@@ -186,10 +187,16 @@ def summarise(rows: list, effects) -> dict:
                                     for r in rs if r["significant_gap"]),
             "gap_ratio_median": float(np.median([r["gap_ratio"] for r in rs])) if rs else None,
         }
-    dist_effects = [e for e, v in per_effect.items() if v["distinguishable"]]
-    absorbed_effects = [e for e, v in per_effect.items() if not v["distinguishable"]]
-    d_rows = [r for r in eff_rows if r["truth"] in dist_effects]
-    a_rows = [r for r in eff_rows if r["truth"] in absorbed_effects]
+    # Distinguishability is a property of an effect *on an operation*: friction on the output
+    # shaft while opening is not the camshaft friction of a closing.
+    groups = {}
+    for r in eff_rows:
+        groups.setdefault((r["truth"], r["operation"]), []).append(r["true_distinguishable"])
+    group_dist = {k: (_frac(v) or 0.0) >= 0.5 for k, v in groups.items()}
+    dist_effects = sorted(f"{e}/{op}" for (e, op), d in group_dist.items() if d)
+    absorbed_effects = sorted(f"{e}/{op}" for (e, op), d in group_dist.items() if not d)
+    d_rows = [r for r in eff_rows if group_dist[(r["truth"], r["operation"])]]
+    a_rows = [r for r in eff_rows if not group_dist[(r["truth"], r["operation"])]]
     controls = [r for r in rows if r["truth"] == "none" and r["verdict"] != "error"]
     loo_rows = [r for r in d_rows if r["significant_gap"]]
     return {

@@ -48,3 +48,22 @@ def test_cam_friction_is_absorbed_into_bc(breaker, make_capture):
     assert not a["distinguishable"]
     assert a["residual_rad"] < 0.3 * d.noise
     assert 4 < a["parameter_shift"]["BC"] < 20
+
+
+def test_cam_friction_is_absorbed_exactly_through_its_declared_equivalence(breaker):
+    """cam_friction is BC -> BC/η: the absorption check must find a residual at noise level."""
+    import numpy as np
+
+    from service.diagnosis.identifiability import EXACT_EQUIVALENCE
+    from service.mechanics.closing import simulate_closing
+    from service.mechanics.prototype import REALISTIC, Effects, make_prototype_simulator
+
+    p = breaker.design_parameters()
+    s = REALISTIC["cam_friction"]
+    t = np.arange(0, 0.05, 1 / 128000)
+    proto = make_prototype_simulator(breaker, Effects(cam_friction=s), "close", method="exact")(p, t)
+    x = np.array([p["AC"], p["BC"], p["CC"], 0.0])
+    y = EXACT_EQUIVALENCE["cam_friction"](x, s, "close")
+    reduced = simulate_closing(dict(p, AC=y[0], BC=y[1], CC=y[2]), t, cam=breaker.cam,
+                               geometry=breaker.closing_geometry)
+    assert np.max(np.abs(proto.theta - reduced.theta)) < 1e-5

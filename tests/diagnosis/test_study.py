@@ -52,7 +52,7 @@ def test_meaningful_figures(quick_study):
     assert data["control_none_rate"] == 1.0           # both controls (open, close) are `none`
     assert data["false_alarm_rate"] == pytest.approx(1 - data["control_none_rate"])
     # cam friction is exactly a rescaling of BC: absorbed, never named
-    assert "cam_friction" in data["absorbed_effects"]
+    assert "cam_friction/close" in data["absorbed_effects"]
     assert data["per_effect"]["cam_friction"]["named_wrong"] == 0
     assert data["per_effect"]["cam_friction"]["reported_absorbed"] == 1.0
     # the study finds some effects distinguishable and names them, and never names a wrong one
