@@ -265,8 +265,9 @@ def _subgrid(grid, n):
 
 def _rmse_at_samples(capture, breaker, result: FitResult, window: FitWindow) -> float:
     """The reported RMSE: model against every measured sample of the valid interval."""
-    i0 = int(round(window.t_start * window.sample_rate))
-    n = window.t.size
-    travel = result.fitted_travel(capture, breaker)[i0: i0 + n]
-    y = operation_coordinate(travel, result.operation, breaker.stroke)
-    return float(np.sqrt(np.mean((y - window.y) ** 2)))
+    x = [result.parameters[k] for k in result.parameter_names[:-1]] + [result.onset_delay_s]
+    if result.operation == "open":
+        theta = OpeningCurves.at(window.t, x, breaker)
+    else:
+        theta = ClosingCurves.at(window.t, x, breaker, result.dc_used)
+    return float(np.sqrt(np.mean((theta - window.y) ** 2)))
