@@ -17,7 +17,6 @@ import numpy as np
 from ..acquisition.capture import Capture
 from ..mechanics.breaker import CLOSING_PARAMETERS, OPENING_PARAMETERS, Breaker
 from ..mechanics.characteristics import travel_characteristics
-from ..mechanics.coordinates import operation_coordinate
 from . import cmaes
 from .curves import ClosingCurves, OpeningCurves, weighted_rmse
 from .parameter_space import ParameterSpace
