@@ -206,6 +206,13 @@ def summarise(rows: list, effects) -> dict:
         "top1_accuracy_distinguishable": _frac(r["verdict"] == r["truth"] for r in d_rows),
         "top1_accuracy_all_effects": _frac(r["verdict"] == r["truth"] for r in eff_rows),
         "absorbed_reported_absorbed": _frac(r["true_absorbed_reported"] for r in a_rows),
+        # The same two figures judged capture by capture, by the diagnoser's own check on each
+        # capture (an effect near the top of its strength range can be distinguishable on one
+        # capture while its group is mostly absorbed).
+        "capture_absorbed_reported_absorbed": _frac(r["true_absorbed_reported"] for r in eff_rows
+                                                    if r["true_distinguishable"] is False),
+        "capture_top1_distinguishable": _frac(r["verdict"] == r["truth"] for r in eff_rows
+                                              if r["true_distinguishable"]),
         "absorbed_confident_wrong": _frac(r["verdict"] not in (r["truth"], "none", "unexplained")
                                           for r in a_rows),
         "confident_wrong_all_effects": _frac(r["verdict"] not in (r["truth"], "none", "unexplained")
@@ -283,6 +290,9 @@ def _write_markdown(out, data):
         ["top-1 accuracy (all effects)", data["top1_accuracy_all_effects"], "—"],
         ["absorbed effects listed as absorbed", data["absorbed_reported_absorbed"], "1.0"],
         ["absorbed effects named wrongly", data["absorbed_confident_wrong"], "0"],
+        ["per capture: absorbed (by the check) listed as absorbed",
+         data.get("capture_absorbed_reported_absorbed"), "1.0"],
+        ["per capture: distinguishable (by the check) named right", data.get("capture_top1_distinguishable"), "—"],
         ["any effect named wrongly", data["confident_wrong_all_effects"], "—"],
         ["controls giving none", data["control_none_rate"], f"≥ {t['control_none_rate']}"],
         ["median shrink, true effect (distinguishable)", data["median_shrink_true_effect"], "≥ 0.70"],
