@@ -10,7 +10,7 @@ import json
 
 from sqlalchemy import select
 
-from service.jobs import _reason
+from service.jobs import failure_reason
 from service.storage import crud
 from service.storage.db import cached_engine, session_factory
 from service.storage.models import BreakerRow, DiagnosisRow, OperationRow, utcnow
@@ -45,7 +45,7 @@ def run_diagnosis_job(operation_id: int, database_url: str) -> str:
         result = json.loads(json.dumps(diagnose([capture], breaker, kind), default=_plain))
         status, reason = "done", None
     except Exception as exc:  # stored with its reason; a later request may retry by deleting it
-        result, status, reason = None, "failed", _reason(exc)
+        result, status, reason = None, "failed", failure_reason(exc)
     with Session() as session, session.begin():
         row = session.scalars(select(DiagnosisRow).where(DiagnosisRow.operation_id == operation_id)).one()
         row.status, row.result, row.failure_reason, row.finished_at = status, result, reason, utcnow()

@@ -93,7 +93,7 @@ def run_fit_job(operation_id: int, options: JobOptions | dict) -> dict:
             result_dict["dc_used"], result_dict["dc_source"] = dc, dc_source
         failure = None
     except Exception as exc:  # every failure is stored with its reason; the queue moves on
-        failure = _reason(exc)
+        failure = failure_reason(exc)
     runtime = time.perf_counter() - t0
     with Session() as session, session.begin():
         if failure is not None:
@@ -105,7 +105,8 @@ def run_fit_job(operation_id: int, options: JobOptions | dict) -> dict:
     return {"operation_id": operation_id, "status": "done", "landed": landed, "runtime_s": runtime}
 
 
-def _reason(exc: Exception) -> str:
+def failure_reason(exc: Exception) -> str:
+    """The reason a job failed, in words an engineer understands."""
     from service.acquisition.capture import CaptureError
 
     text = str(exc) or type(exc).__name__
