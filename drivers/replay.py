@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from service.acquisition.capture import Capture, CaptureError
+from drivers.capture import Capture, CaptureError
 from service.acquisition.capture_file import read_capture
 
 from .interface import DriverStats, SampleBlock

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .capture import Capture, CaptureError
+from drivers.capture import Capture, CaptureError
 
 # Unit spellings accepted per quantity, with the factor to our unit.
 TRAVEL_UNITS = {"rad": 1.0, "radian": 1.0, "radians": 1.0, "deg": np.pi / 180, "degree": np.pi / 180,

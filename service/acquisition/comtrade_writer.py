@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .capture import Capture
+from drivers.capture import Capture
 
 FORMATS = ("ASCII", "BINARY", "BINARY32", "FLOAT32")
 _INT_MAX = {"ASCII": 32767, "BINARY": 32767, "BINARY32": 2_147_483_647}

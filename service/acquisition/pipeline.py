@@ -12,7 +12,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .capture import Capture
+from drivers.capture import Capture
 from .comtrade_writer import write_comtrade
 from .trigger import DetectedOperation, TriggerDetector, TriggerSettings, detect_capture
 

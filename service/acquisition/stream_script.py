@@ -22,7 +22,7 @@ import numpy as np
 from drivers.interface import SampleBlock
 
 from ..mechanics.breaker import Breaker
-from .capture import Capture
+from drivers.capture import Capture
 from .synthetic import SHOCK_LEAD_S, operation_travel
 
 CHUNK = 65_536                 # samples generated at once; noise is seeded per chunk

@@ -13,7 +13,7 @@ import numpy as np
 from ..mechanics.breaker import Breaker
 from ..mechanics.closing import simulate_closing
 from ..mechanics.opening import simulate_opening
-from .capture import Capture
+from drivers.capture import Capture
 
 SHOCK_LEAD_S = 0.4e-3  # latch-release shock precedes the onset of motion [s]
 

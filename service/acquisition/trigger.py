@@ -22,7 +22,7 @@ import numpy as np
 
 from drivers.interface import SampleBlock
 
-from .capture import Capture
+from drivers.capture import Capture
 
 OPEN, CLOSE = "open", "close"
 INCOMPLETE = "incomplete"                 # samples missing (stream gap) or stream ended early

@@ -60,7 +60,7 @@ def bootstrap(settings: Settings, Session) -> str | None:
 def create_app(settings: Settings, *, executor=None, start_monitor: bool = True, on_key=None) -> FastAPI:
     """Build the service. ``executor`` replaces the configured one (tests); ``on_key(key)`` is
     called with a newly generated admin key (the commands print it)."""
-    from service.monitor import Monitor
+    from service.jobs.ingest import Monitor
     from service.workers import make_executor
     from service.workers.diagnoses import DiagnosisRunner
 

@@ -17,7 +17,7 @@ from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import Response
 from sqlalchemy.exc import IntegrityError
 
-from service.acquisition.capture import CaptureError
+from drivers.capture import CaptureError
 from service.storage import crud
 from service.storage.models import utcnow
 
@@ -94,7 +94,7 @@ def create_breaker(body: s.BreakerCreate, session: SessionDep, _: AdminDep):
              tags=["breakers"])
 def reset_baseline(breaker_id: BreakerId, body: s.BaselineReset, session: SessionDep, settings: SettingsDep,
                    who: AdminDep):
-    from service.jobs import reset_baseline as reset
+    from service.jobs.fit import reset_baseline as reset
 
     _breaker_or_404(session, breaker_id)
     cleared = reset(session, breaker_id=breaker_id, by=who.name, settings=settings.drift_settings)
@@ -122,7 +122,7 @@ def _latest(row, fit, kind: str) -> s.LatestFit | None:
 @router.get("/breakers/{breaker_id}/health", response_model=s.HealthPublic, responses={**AUTH, **NOT_FOUND},
             tags=["breakers"])
 def breaker_health(breaker_id: BreakerId, session: SessionDep, settings: SettingsDep, _: ReaderDep):
-    from service.jobs import drift_status
+    from service.jobs.fit import drift_status
 
     row = _breaker_or_404(session, breaker_id)
     opening = _latest(row, crud.latest_fit(session, breaker_id=breaker_id, kind="open"), "open")
@@ -303,7 +303,7 @@ async def upload_capture(breaker_id: BreakerId, request: Request, session: Sessi
                                       vibration_channel=breaker.channels.get("vibration", "vibration"))
         if capture.travel.size < 16:
             raise CaptureError("the record holds fewer than 16 samples")
-        from service.monitor import infer_operation
+        from service.jobs.ingest import infer_operation
 
         kind = operation or infer_operation(capture)
     except CaptureError as exc:
@@ -330,7 +330,7 @@ def list_alarms(session: SessionDep, _: ReaderDep,
              409: {"model": s.Message}}, tags=["alarms"])
 def acknowledge_alarm(alarm_id: AlarmId, session: SessionDep, settings: SettingsDep, who: OperatorDep,
                       body: s.AlarmAck | None = None):
-    from service.jobs import acknowledge_drift
+    from service.jobs.fit import acknowledge_drift
 
     alarm = crud.get_alarm(session, alarm_id=alarm_id)
     if alarm is None:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import sys
 
-from ..acquisition.capture import CaptureError
+from drivers.capture import CaptureError
 from ..acquisition.capture_file import read_capture
 from ..breaker_file import BreakerFileError, load_breaker
 from ..errors import UserError

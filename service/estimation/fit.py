@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..acquisition.capture import Capture
+from drivers.capture import Capture
 from ..mechanics.breaker import CLOSING_PARAMETERS, OPENING_PARAMETERS, Breaker
 from ..mechanics.characteristics import travel_characteristics
 from . import cmaes

@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..acquisition.capture import Capture
+from drivers.capture import Capture
 from ..mechanics.breaker import Breaker
 from ..mechanics.coordinates import travel_from_coordinate
 

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..acquisition.capture import Capture
+from drivers.capture import Capture
 from ..mechanics.breaker import Breaker
 from ..mechanics.coordinates import operation_coordinate
 

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from service.acquisition.capture import Capture
+from drivers.capture import Capture
 
 
 def _fsync_dir(path: Path) -> None:

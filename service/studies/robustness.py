@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .classification_methods import METHODS, classification_spec, compare_methods
 from .common import DEFAULT_WORKERS
 from .condition_data import DatasetSpec, build_dataset, noise_for_snr, snr_db
 from .report import write_json, write_markdown
@@ -54,7 +55,6 @@ def robustness_table(out_dir: Path, spec: DatasetSpec, data: dict | None = None,
     data : dict, optional
         Its fitted arrays, to reuse for the baseline row without refitting.
     """
-    from .classify import METHODS, compare_methods
 
     rows = {}
     for label, s in scenarios(spec, quick):
@@ -88,7 +88,6 @@ def robustness_table(out_dir: Path, spec: DatasetSpec, data: dict | None = None,
 def run(out_dir: Path, *, seed: int = DEFAULT_SEED, quick: bool = False,
         workers: int = DEFAULT_WORKERS) -> dict:
     """The robustness table alone (the classify study also writes it)."""
-    from .classify import classification_spec
 
     spec = classification_spec(seed, quick)
     return robustness_table(Path(out_dir), spec, None, seed=seed, quick=quick, workers=workers)

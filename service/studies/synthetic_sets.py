@@ -18,7 +18,7 @@ import dataclasses
 
 import numpy as np
 
-from ..acquisition.capture import Capture
+from drivers.capture import Capture
 from ..acquisition.synthetic import SyntheticTruth, synthesize_capture
 from ..mechanics.breaker import CLOSING_PARAMETERS, OPENING_PARAMETERS, TABLE2_RANGES, Breaker
 from ..mechanics.closing import simulate_closing

@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Protocol
 
-from service.jobs import JobOptions
+from service.jobs.fit import JobOptions
 
 # Called with the job's return dict when a job finishes in this process (local backends).
 ResultCallback = Callable[[dict], None]

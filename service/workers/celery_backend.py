@@ -19,7 +19,7 @@ from functools import lru_cache
 
 from celery import Celery
 
-from service.jobs import JobOptions, run_fit_job
+from service.jobs.fit import JobOptions, run_fit_job
 
 TASK_NAME = "hvcb.fit"
 

@@ -21,7 +21,7 @@ class DiagnosisRunner:
         self._lock = threading.Lock()
 
     def ensure(self, operation_id: int) -> None:
-        from service.diagnosis_jobs import run_diagnosis_job
+        from service.jobs.diagnosis import run_diagnosis_job
 
         with self._lock:
             fut = self._futures.get(operation_id)

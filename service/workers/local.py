@@ -8,7 +8,7 @@ import threading
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 
-from service.jobs import JobOptions, run_fit_job
+from service.jobs.fit import JobOptions, run_fit_job
 
 log = logging.getLogger("hvcb.workers")
 

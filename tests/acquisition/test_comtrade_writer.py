@@ -9,7 +9,7 @@ import comtrade
 import numpy as np
 import pytest
 
-from service.acquisition.capture import Capture
+from drivers.capture import Capture
 from service.acquisition.capture_file import read_capture
 from service.acquisition.comtrade_writer import FORMATS, write_comtrade
 from service.acquisition.synthetic import synthesize_capture

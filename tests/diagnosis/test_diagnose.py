@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from service.acquisition.capture import Capture
+from drivers.capture import Capture
 from service.diagnosis import DiagnosisError, diagnose
 from service.diagnosis.commands import _jsonable
 from service.mechanics.prototype import Effects

@@ -8,7 +8,7 @@ import pytest
 from drivers import replay
 from drivers.interface import Driver, SampleBlock
 from drivers.replay import NO_VIBRATION_FLAG, ReplayDriver
-from service.acquisition.capture import Capture
+from drivers.capture import Capture
 
 
 class FakeClock:

@@ -6,7 +6,7 @@ import sys
 import numpy as np
 import pytest
 
-from service.acquisition.capture import Capture, CaptureError
+from drivers.capture import Capture, CaptureError
 from service.acquisition.capture_file import parse_csv, read_capture
 from service.acquisition.synthetic import synthesize_capture
 from service.breaker_file import BreakerFileError, load_breaker

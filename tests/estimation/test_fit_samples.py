@@ -74,7 +74,7 @@ def test_fitted_curve_follows_the_measurement(fits, samples_dir, breaker):
 
 def test_over_damped_opening_that_creeps_to_rest_is_fitted(breaker):
     """A heavily damped buffer gives no overtravel: the window ends where the travel arrives at rest."""
-    from service.acquisition.capture import Capture
+    from drivers.capture import Capture
     from service.acquisition.synthetic import vibration_signature
     from service.mechanics.opening import opening_angle
 

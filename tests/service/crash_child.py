@@ -9,7 +9,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 from conftest import make_settings, synth  # noqa: E402
 
 from service.breaker_file import load_breaker  # noqa: E402
-from service.monitor import Monitor  # noqa: E402
+from service.jobs.ingest import Monitor  # noqa: E402
 from service.storage import crud  # noqa: E402
 from service.storage.db import make_engine, session_factory  # noqa: E402
 from service.workers import make_executor  # noqa: E402

@@ -221,7 +221,7 @@ def test_malformed_uploads_are_4xx_and_leave_db_unchanged(env, breaker, case):
 
 # -- alarms --------------------------------------------------------------------------------------
 def test_do_leak_raises_alarm_that_can_be_acknowledged_and_reset(env, breaker):
-    from service.jobs import update_drift
+    from service.jobs.fit import update_drift
 
     # Parameter history straight into the fit table (the drift detector is tested on its own);
     # ten healthy fits form the baseline in this test's settings, then DO falls 2 %/operation.

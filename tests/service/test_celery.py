@@ -22,7 +22,7 @@ import pytest
 from sqlalchemy import delete, func, select
 
 from conftest import PG_URL, REDIS_URL, _reachable, synth
-from service.monitor import Monitor
+from service.jobs.ingest import Monitor
 from service.settings import load_settings
 from service.storage import crud
 from service.storage.db import make_engine, session_factory, upgrade

@@ -18,7 +18,7 @@ import pytest
 from sqlalchemy import func, select
 
 from conftest import make_settings, synth
-from service.monitor import Monitor
+from service.jobs.ingest import Monitor
 from service.storage import crud
 from service.storage.db import make_engine, session_factory
 from service.storage.models import FitRow, OperationRow

@@ -10,7 +10,7 @@ import json
 
 from sqlalchemy import select
 
-from service.jobs import failure_reason
+from service.jobs.fit import failure_reason
 from service.storage import crud
 from service.storage.db import cached_engine, session_factory
 from service.storage.models import BreakerRow, DiagnosisRow, OperationRow, utcnow
@@ -22,7 +22,7 @@ def run_diagnosis_job(operation_id: int, database_url: str) -> str:
 
     Returns the final status (``done``, ``failed`` or ``skipped`` when another run finished it).
     """
-    from service.acquisition.capture import CaptureError
+    from drivers.capture import CaptureError
     from service.acquisition.capture_file import read_capture
     from service.diagnosis import diagnose
 

@@ -17,7 +17,7 @@ from pathlib import Path
 
 from sqlalchemy.exc import DBAPIError, IntegrityError, OperationalError
 
-from service.acquisition.capture import Capture, CaptureError
+from drivers.capture import Capture, CaptureError
 from service.storage import crud
 from service.storage.spool import Spool, capture_digest, capture_files, write_capture_file
 

@@ -107,7 +107,7 @@ def run_fit_job(operation_id: int, options: JobOptions | dict) -> dict:
 
 def failure_reason(exc: Exception) -> str:
     """The reason a job failed, in words an engineer understands."""
-    from service.acquisition.capture import CaptureError
+    from drivers.capture import CaptureError
 
     text = str(exc) or type(exc).__name__
     if isinstance(exc, CaptureError):
@@ -120,7 +120,7 @@ def failure_reason(exc: Exception) -> str:
 
 
 def _fit(capture_path: str, expected_sha: str, breaker, kind: str, dc, options: JobOptions):
-    from service.acquisition.capture import CaptureError
+    from drivers.capture import CaptureError
     from service.acquisition.capture_file import read_capture
 
     files = capture_files(capture_path)
