@@ -15,7 +15,6 @@ import math
 from .mechanism import PUFFER_FILL_PRESSURE, Effects, Mechanism
 
 SLIP_SPEED = 0.005  # regularisation of sign(ω) in Coulomb laws [rad/s]
-_SMOOTH = 0.005 * 0.005
 
 
 def _sign(v: float) -> float:
@@ -79,12 +78,20 @@ class Laws:
 
     # --- friction ----------------------------------------------------------------------
     def coulomb(self, w: float, level: float) -> tuple[float, float]:
-        """Coulomb friction with the Stribeck rise: (torque on the coordinate [N m], power [W])."""
+        """Resistance torque TOf/TCf on the coordinate and its power: (torque [N m], power [W]).
+
+        As in the paper it is a constant torque against the operation's direction; the
+        Stribeck effect turns a share of it into Coulomb friction (sign of ω, Stribeck rise at
+        low speed), which is what lets the mechanism stick at the end of the stroke.
+        """
         e = self.e
-        mag = level
-        if e.stribeck_rise:
-            mag *= 1.0 + e.stribeck_rise * math.exp(-(abs(w) / e.stribeck_speed) ** e.stribeck_shape)
-        T = -mag * _sign(w)
+        share = e.coulomb_share
+        T = -(1.0 - share) * level
+        if share:
+            mag = share * level
+            if e.stribeck_rise:
+                mag *= 1.0 + e.stribeck_rise * math.exp(-(abs(w) / e.stribeck_speed) ** e.stribeck_shape)
+            T -= mag * _sign(w)
         return T, -T * w
 
     def viscous(self, theta: float, w: float) -> tuple[float, float]:

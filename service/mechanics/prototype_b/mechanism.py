@@ -6,7 +6,7 @@ Units: N, m, kg m², rad, s. Nothing here integrates anything; the dynamics live
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
@@ -110,7 +110,8 @@ class Effects:
     ``gas_ratio`` initial volume / swept volume, ``gas_leak`` nozzle leakage rate [1/s].
     Linkage: ratio 1 + a1 cos(k θ + φ1) + a2 cos(2k θ + φ2), mean-corrected over the stroke.
     Rod: ``rod_hz`` (None = rigid), ``rod_zeta``; ``sensor_side`` "mechanism" or "contact".
-    Stribeck: ``stribeck_rise`` = static/kinetic - 1, ``stribeck_speed`` [rad/s], ``stribeck_shape``.
+    Friction: ``coulomb_share`` share of TOf/TCf that is Coulomb friction (0: the paper's
+    constant resistance torque), ``stribeck_rise`` = static/kinetic - 1, ``stribeck_speed`` [rad/s], ``stribeck_shape``.
     Viscous: ``viscous`` [N m s], ``viscous_slope`` (relative change over the stroke).
     Spring: ``spring_gamma`` relative force change at full compression, ``spring_power`` 1
     (quadratic) or 2 (cubic), ``spring_which`` "opening" or "closing".
@@ -139,6 +140,7 @@ class Effects:
     rod_hz: float | None = None
     rod_zeta: float = 0.05
     sensor_side: str = "mechanism"
+    coulomb_share: float = 0.0
     stribeck_rise: float = 0.0
     stribeck_speed: float = 2.0
     stribeck_shape: float = 2.0
@@ -158,4 +160,3 @@ class Effects:
     cam_slope: float = 0.0
     sensor_lag: float = 0.0
     latch_ramp: float = 0.0
-    extra: dict = field(default_factory=dict)
