@@ -42,9 +42,10 @@ REALISTIC = {
                       "speed), metering pin closing 15-35 % of the orifice area over the buffer "
                       "span, 5-15 mrad free travel: maximum travel changes by -1..+13 mrad, "
                       "opening time and peak speed unchanged",
-    "puffer_gas": "SF6 puffer (0.7 MPa abs fill, 100 mm piston, volume ratio 1.6-3, polytropic "
-                  "exponent 1.0-1.4, nozzle leak 10-50 1/s) on top of the linear damper: peak "
-                  "opening speed -3..-6 %, maximum travel -15..-40 mrad",
+    "puffer_gas": "SF6 puffer (0.7 MPa abs fill, 80 mm piston, volume ratio 1.6-3, polytropic "
+                  "exponent 1.0-1.4, nozzle leak 15-50 1/s growing 8-fold once the nozzle clears "
+                  "at 0.45-0.65 rad) on top of the linear damper: peak opening speed "
+                  "-2..-5.5 %, maximum travel -2..-11 mrad",
     "linkage_kinematics": "transmission ratio varying by 3-6 % (first harmonic, 1.5-3 cycles per "
                           "rad) and 1-2 % (second, half the draws), free phases, end points kept: "
                           "travel differs by 2-8 mrad, peak speed by up to ±1.7 %",
@@ -79,7 +80,7 @@ REALISTIC = {
 # Design speed of the buffer [m/s]: the nominal engagement speed (32.6 rad/s at rb = 0.08 m);
 # the orifice law equals the linear cb·v there, so the two buffers agree at the design point.
 BUFFER_DESIGN_SPEED = 2.6
-PUFFER_AREA = math.pi * 0.05 ** 2   # 100 mm puffer piston [m²]
+PUFFER_AREA = math.pi * 0.04 ** 2   # 80 mm puffer piston [m²]
 
 
 def draw_shape(effect: str, operation: str, rng: np.random.Generator) -> dict:
@@ -89,7 +90,8 @@ def draw_shape(effect: str, operation: str, rng: np.random.Generator) -> dict:
         return {"exponent": u(1.3, 1.6), "metering": u(0.15, 0.35), "free_travel_rad": u(0.005, 0.015)}
     if effect == "puffer_gas":
         return {"area_m2": PUFFER_AREA * u(0.85, 1.15), "kappa": u(1.0, 1.4),
-                "volume_ratio": u(1.6, 3.0), "leak_per_s": u(10.0, 50.0)}
+                "volume_ratio": u(1.6, 3.0), "leak_per_s": u(15.0, 50.0),
+                "nozzle_clear_rad": u(0.45, 0.65)}
     if effect == "linkage_kinematics":
         two = bool(rng.random() < 0.5)
         return {"a1": u(0.03, 0.06) * rng.choice([-1.0, 1.0]), "a2": u(0.01, 0.02) if two else 0.0,
@@ -135,7 +137,8 @@ def apply_effect(eff: Effects, effect: str | None, strength: float, shape: dict)
                        buffer_free=s * shape["free_travel_rad"], buffer_vref=BUFFER_DESIGN_SPEED)
     if effect == "puffer_gas":
         return replace(eff, gas_area=s * shape["area_m2"], gas_kappa=shape["kappa"],
-                       gas_ratio=shape["volume_ratio"], gas_leak=shape["leak_per_s"])
+                       gas_ratio=shape["volume_ratio"], gas_leak=shape["leak_per_s"],
+                       gas_clear=shape["nozzle_clear_rad"])
     if effect == "linkage_kinematics":
         return replace(eff, link_a1=s * shape["a1"], link_a2=s * shape["a2"],
                        link_k=shape["harmonic_per_rad"], link_phi1=shape["phase1"],

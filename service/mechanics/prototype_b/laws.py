@@ -15,6 +15,8 @@ import math
 from .mechanism import PUFFER_FILL_PRESSURE, Effects, Mechanism
 
 SLIP_SPEED = 0.005  # regularisation of sign(ω) in Coulomb laws [rad/s]
+NOZZLE_OPEN_FACTOR = 8.0  # puffer leak area after / before the nozzle clears [-]
+NOZZLE_OPEN_SPAN = 0.08   # contact travel over which the nozzle throat clears [rad]
 
 
 def _sign(v: float) -> float:
@@ -152,7 +154,11 @@ class Laws:
         dens = mass / vol
         dp = dens ** e.gas_kappa - 1.0  # (p - p0)/p0
         Fg = -m.raec * e.gas_area * PUFFER_FILL_PRESSURE * dp
-        dmass = -e.gas_leak * math.sqrt(dens) * dp / math.sqrt(abs(dp) + 1e-4)
+        # The nozzle throat clears the fixed contact at gas_clear: the leak area then grows
+        # NOZZLE_OPEN_FACTOR-fold over NOZZLE_OPEN_SPAN (the puffer discharges into the arc zone).
+        u = min(max((y - e.gas_clear) / NOZZLE_OPEN_SPAN, 0.0), 1.0)
+        leak = e.gas_leak * (1.0 + (NOZZLE_OPEN_FACTOR - 1.0) * u * u * (3.0 - 2.0 * u))
+        dmass = -leak * math.sqrt(dens) * dp / math.sqrt(abs(dp) + 1e-4)
         return F + Fg, P_lin, -Fg * v, dmass
 
     def gas_pressure(self, y: float, mass: float) -> float:

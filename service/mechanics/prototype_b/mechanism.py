@@ -107,7 +107,8 @@ class Effects:
     orifice-area loss over the buffer span, ``buffer_free`` free travel before it bites [rad],
     ``buffer_vref`` speed at which the orifice law equals cb·v [m/s], ``buffer_span`` [rad].
     Puffer gas: ``gas_area`` piston area [m²] (0 = off), ``gas_kappa`` polytropic exponent,
-    ``gas_ratio`` initial volume / swept volume, ``gas_leak`` nozzle leakage rate [1/s].
+    ``gas_ratio`` initial volume / swept volume, ``gas_leak`` nozzle leakage rate [1/s] before the nozzle clears at
+    contact travel ``gas_clear`` [rad].
     Linkage: ratio 1 + a1 cos(k θ + φ1) + a2 cos(2k θ + φ2), mean-corrected over the stroke.
     Rod: ``rod_hz`` (None = rigid), ``rod_zeta``; ``sensor_side`` "mechanism" or "contact".
     Friction: ``coulomb_share`` share of TOf/TCf that is Coulomb friction (0: the paper's
@@ -131,7 +132,8 @@ class Effects:
     gas_area: float = 0.0
     gas_kappa: float = 1.1
     gas_ratio: float = 2.0
-    gas_leak: float = 60.0
+    gas_leak: float = 30.0
+    gas_clear: float = 0.55
     link_a1: float = 0.0
     link_a2: float = 0.0
     link_k: float = 2.0
