@@ -119,6 +119,9 @@ class Settings(BaseSettings):
                                              description="the DAQ driver ([acquisition] table)")
     alarms: dict = Field(default_factory=dict, description="drift detector settings, see docs/alarms.md "
                          "(service.alarms.settings.DriftSettings)")
+    iec61850_port: int | None = Field(None, ge=1, le=65535,
+                                      description="IEC 61850 (MMS) server port; empty = off (102 is the "
+                                      "standard port and needs privileges), see README")
 
     @classmethod
     def settings_customise_sources(cls, settings_cls: type[BaseSettings],
