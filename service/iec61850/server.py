@@ -10,7 +10,10 @@ from __future__ import annotations
 
 import logging
 import threading
+import time
 from datetime import datetime, timezone
+
+from service.errors import UserError
 
 from . import points as pm
 from .snapshot import OperatingTimeCache, breaker_views, breakers, fingerprint
@@ -21,8 +24,23 @@ POLL_S = 0.5          # database poll interval [s]
 FULL_REFRESH_S = 5.0  # full re-read even without a change: DAQ-down and staleness [s]
 
 
-class Iec61850Error(RuntimeError):
+class Iec61850Error(UserError):
     """The server cannot run (library missing, port taken); the message says why."""
+
+
+def preflight(port: int) -> None:
+    """Refuse to start, in words, when the library is missing or the port cannot be bound
+    (``hvcb serve`` calls this before uvicorn, whose start-up errors come as tracebacks)."""
+    import socket
+
+    _library()
+    with socket.socket() as s:
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            s.bind(("0.0.0.0", port))
+        except OSError as exc:
+            raise Iec61850Error(f"the IEC 61850 server cannot listen on port {port} ({exc.strerror}); "
+                                f"set iec61850_port (HVCB_IEC61850_PORT) to a free port") from None
 
 
 def _library():
@@ -32,6 +50,15 @@ def _library():
         raise Iec61850Error("iec61850_port is set but the IEC 61850 library is not installed: "
                             "pip install 'hvcb[iec61850]' (pyiec61850-ng)") from exc
     return lib
+
+
+def _software_revision() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("hvcb")
+    except PackageNotFoundError:
+        return "dev"
 
 
 def _ms(t: datetime) -> int:
@@ -86,12 +113,8 @@ class _Model:
                 L.TRG_OPT_DATA_CHANGED | L.TRG_OPT_QUALITY_CHANGED | L.TRG_OPT_GI,
                 L.RPT_OPT_SEQ_NUM | L.RPT_OPT_TIME_STAMP | L.RPT_OPT_REASON_FOR_INCLUSION
                 | L.RPT_OPT_DATA_SET | L.RPT_OPT_DATA_REFERENCE, 50, 0)
+        rev = _software_revision()
         for ld in lds:
-            from importlib.metadata import PackageNotFoundError, version
-            try:
-                rev = version("hvcb")
-            except PackageNotFoundError:
-                rev = "dev"
             strings += [(self._da(f"{ld.name}/LLN0.NamPlt.vendor"), "hvcb"),
                         (self._da(f"{ld.name}/LLN0.NamPlt.swRev"), rev),
                         (self._da(f"{ld.name}/LLN0.NamPlt.d"), f"breaker {ld.breaker}"),
@@ -184,8 +207,6 @@ class Iec61850Server:
         self._thread: threading.Thread | None = None
         self._fingerprint = None
         self._last_full = 0.0
-        self.updates = 0  # polls that changed at least one value (for tests and metrics)
-        self.updated = threading.Condition()
 
     # -- lifecycle -----------------------------------------------------------------------------
     def start(self) -> None:
@@ -232,12 +253,10 @@ class Iec61850Server:
         while not self._stop.wait(self.poll_s):
             try:
                 self._refresh()
-            except Exception:  # the DB may be down for a while; keep serving the last values
-                log.warning("IEC 61850: database poll failed; values kept", exc_info=True)
+            except Exception as exc:  # the DB may be down for a while; keep serving the last values
+                log.warning("IEC 61850: refresh failed (%s: %s); last values kept", type(exc).__name__, exc)
 
     def _refresh(self, force: bool = False) -> None:
-        import time
-
         now_m = time.monotonic()
         with self.Session() as session:
             fp = fingerprint(session)
@@ -250,12 +269,8 @@ class Iec61850Server:
             now = datetime.now(timezone.utc)
             views = breaker_views(session, now=now, daq_timeout_s=self.settings.daq_timeout_s,
                                   drift_settings=self.settings.drift_settings, cache=self._cache)
-        changed = 0
         for bid, ld in self._lds.items():
             if bid in views:
                 vals = pm.values(ld, views[bid], now=now, stale_after_s=self.settings.stale_after_s)
-                changed += self._model.apply(ld, vals)
+                self._model.apply(ld, vals)
         self._fingerprint, self._last_full = fp, now_m
-        with self.updated:
-            self.updates += 1 if changed else 0
-            self.updated.notify_all()

@@ -221,3 +221,39 @@ def test_server_is_off_without_the_setting(tmp_path):
 def test_port_from_environment(monkeypatch, tmp_path):
     monkeypatch.setenv("HVCB_IEC61850_PORT", "10102")
     assert make_settings(tmp_path, None).iec61850_port == 10102
+
+
+def test_breaker_registered_while_running_gets_its_logical_device(service):
+    app, port = service
+    from service.storage import crud as c
+
+    with app.state.Session() as s, s.begin():
+        row = c.get_breaker(s, breaker_id=1)
+        c.upsert_breaker(s, name="second", tag="Q2", breaker_file=row.breaker_file,
+                         cam_file_name=row.cam_file_name, cam_table=row.cam_table)
+        c.upsert_breaker(s, name="third", tag="not-an-identifier", breaker_file=row.breaker_file,
+                         cam_file_name=row.cam_file_name, cam_table=row.cam_table)
+    deadline = time.monotonic() + 30
+    while True:  # the rebuild drops connections; a new one sees the new model
+        client = connect(port)
+        try:
+            devices = sorted(client.get_logical_devices())
+            if devices == ["hvcbQ1", "hvcbQ2"]:
+                assert client.read_value("hvcbQ2/XCBR1.OpCnt.stVal", "ST") == 0
+                assert client.read_value("hvcbQ2/LLN0.NamPlt.d", "DC") == "breaker second"
+                break
+        finally:
+            client.disconnect()
+        assert time.monotonic() < deadline, f"logical devices still {devices}"
+        time.sleep(0.1)
+
+
+def test_port_in_use_is_refused_in_words():
+    from service.errors import UserError
+    from service.iec61850.server import preflight
+
+    with socket.socket() as s:
+        s.bind(("0.0.0.0", 0))
+        s.listen()
+        with pytest.raises(UserError, match=r"cannot listen on port \d+ .*free port"):
+            preflight(s.getsockname()[1])
