@@ -123,6 +123,11 @@ class Settings(BaseSettings):
                                       description="IEC 61850 (MMS) server port; empty = off (102 is the "
                                       "standard port and needs privileges), see README")
 
+    @field_validator("iec61850_port", mode="before")
+    @classmethod
+    def _port_off_when_empty(cls, v):
+        return None if isinstance(v, str) and not v.strip() else v
+
     @classmethod
     def settings_customise_sources(cls, settings_cls: type[BaseSettings],
                                    init_settings: PydanticBaseSettingsSource,

@@ -222,6 +222,8 @@ def test_server_is_off_without_the_setting(tmp_path):
 def test_port_from_environment(monkeypatch, tmp_path):
     monkeypatch.setenv("HVCB_IEC61850_PORT", "10102")
     assert make_settings(tmp_path, None).iec61850_port == 10102
+    monkeypatch.setenv("HVCB_IEC61850_PORT", "")
+    assert make_settings(tmp_path, None).iec61850_port is None
 
 
 def test_breaker_registered_while_running_gets_its_logical_device(service):
