@@ -157,6 +157,10 @@ def test_every_point_readable_and_do_alarm_arrives_by_report(service):
         assert read["hvcbQ1/SOPM1.AC.q"] != 0  # no closing fit yet: invalid
         assert read["hvcbQ1/SCBR1.OpTmOpn.mag.f"] == pytest.approx(fit.characteristics["operating_time_s"], rel=1e-6)
         assert read["hvcbQ1/LLN0.NamPlt.ldNs"] == pm.STANDARD_NS
+        assert read["hvcbQ1/LLN0.NamPlt.vendor"] == "hvcb" and read["hvcbQ1/LPHD1.Proxy.stVal"] is True
+        assert read["hvcbQ1/XCBR1.Pos.ctlModel"] == 0  # status only
+        assert read["hvcbQ1/XCBR1.Pos.q"] == 0 and read["hvcbQ1/XCBR1.OpCnt.stVal"] == 12
+        assert read["hvcbQ1/SOPM1.DO.d"] == "buffer damping factor cb rb^2/J2, last opening fit [s^-1]"
         assert read["hvcbQ1/SOPM1.DOWrn.stVal"] is False and read["hvcbQ1/SOPM1.Health.stVal"] == 1
 
         # Subscribe to the alarm report, with a general interrogation first.
