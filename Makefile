@@ -4,7 +4,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 PIP    := $(VENV)/bin/pip
 STAMP  := $(VENV)/.installed
-EXTRAS ?= dev,studies
+EXTRAS ?= dev,studies,iec61850
 
 .PHONY: run test setup bench clean
 

@@ -119,6 +119,14 @@ class Settings(BaseSettings):
                                              description="the DAQ driver ([acquisition] table)")
     alarms: dict = Field(default_factory=dict, description="drift detector settings, see docs/alarms.md "
                          "(service.alarms.settings.DriftSettings)")
+    iec61850_port: int | None = Field(None, ge=1, le=65535,
+                                      description="IEC 61850 (MMS) server port; empty = off (102 is the "
+                                      "standard port and needs privileges), see README")
+
+    @field_validator("iec61850_port", mode="before")
+    @classmethod
+    def _port_off_when_empty(cls, v):
+        return None if isinstance(v, str) and not v.strip() else v
 
     @classmethod
     def settings_customise_sources(cls, settings_cls: type[BaseSettings],

@@ -87,9 +87,23 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
             except Exception:
                 monitor.stop()
                 raise
+        app.state.iec61850 = None
+        if settings.iec61850_port:
+            from service.iec61850.server import Iec61850Server
+
+            try:
+                app.state.iec61850 = Iec61850Server(settings, Session)
+                app.state.iec61850.start()
+            except Exception:
+                if start_monitor:
+                    daq.stop()
+                    monitor.stop()
+                raise
         try:
             yield
         finally:
+            if app.state.iec61850 is not None:
+                app.state.iec61850.stop()
             app.state.diagnoses.shutdown()
             if start_monitor:
                 daq.stop()

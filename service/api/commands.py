@@ -101,6 +101,10 @@ def cmd_serve(args) -> int:
     from service.api.app import create_app
 
     settings = _settings(args, host=args.host, port=args.port)
+    if settings.iec61850_port:
+        from service.iec61850.server import preflight
+
+        preflight(settings.iec61850_port)
     _migrate(settings)
     app = create_app(settings, on_key=_print_key(settings))
     print(f"hvcb serving on http://{settings.host}:{settings.port} (API docs at /docs)", flush=True)
