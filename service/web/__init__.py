@@ -1,0 +1,58 @@
+"""The engineers' web page: server-rendered pages (Jinja2, a little plain JavaScript, vendored
+uPlot), signed in with an API key, served by the API's own app. ``mount_web(app)`` adds it."""
+
+from __future__ import annotations
+
+from fastapi import FastAPI, HTTPException, Request
+from fastapi.responses import JSONResponse, RedirectResponse
+from fastapi.staticfiles import StaticFiles
+from starlette.exceptions import HTTPException as StarletteHTTPException
+
+from .render import HERE, build_templates, page, security_headers
+
+
+def _is_web(request: Request) -> bool:
+    """A page or page-data request (not the JSON API, docs or metrics)."""
+    p = request.url.path
+    return not p.startswith(("/api/", "/docs", "/redoc", "/openapi.json", "/metrics", "/healthz"))
+
+
+def mount_web(app: FastAPI) -> None:
+    from . import auth
+    from .routes import router
+    from .series import DriftTraces
+
+    settings = app.state.settings
+    app.state.web_signer = auth.SessionSigner(auth.load_secret(settings), settings.web.session_hours * 3600.0)
+    app.state.web_templates = build_templates()
+    app.state.web_drift = DriftTraces()
+    app.include_router(router)
+    app.mount("/static", StaticFiles(directory=HERE / "static"), name="static")
+
+    @app.exception_handler(auth.WebAuthError)
+    async def _auth_error(request: Request, exc: auth.WebAuthError):
+        status = {"missing": 401, "invalid": 401, "signin": 401, "forbidden": 403, "csrf": 403}[exc.kind]
+        if request.url.path.startswith("/ui/") or request.method != "GET":
+            resp = JSONResponse({"detail": exc.message}, status_code=status) if request.url.path.startswith("/ui/") \
+                else page(request, "error.html", {"status": status, "message": exc.message}, status_code=status)
+        elif exc.kind == "missing":
+            return security_headers(RedirectResponse(f"/signin?next={request.url.path}", status_code=303))
+        else:
+            resp = page(request, "error.html", {"status": status, "message": exc.message}, status_code=status)
+        if exc.kind == "invalid":
+            resp.delete_cookie(auth.COOKIE, path="/")
+        return security_headers(resp)
+
+    default_http = app.exception_handlers.get(StarletteHTTPException)
+
+    @app.exception_handler(StarletteHTTPException)
+    async def _http_error(request: Request, exc: StarletteHTTPException):
+        if _is_web(request) and not request.url.path.startswith(("/ui/", "/static/")):
+            return page(request, "error.html", {"status": exc.status_code, "message": exc.detail},
+                        status_code=exc.status_code)
+        if default_http is not None:
+            return await default_http(request, exc)
+        return JSONResponse({"detail": exc.detail}, status_code=exc.status_code, headers=exc.headers)
+
+
+__all__ = ["mount_web", "HTTPException"]
