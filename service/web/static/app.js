@@ -6,6 +6,7 @@
 
   var body = document.body;
   var charts = {};
+  window.hvcb = { charts: charts };  // for the browser tests and bench/ui_speed.py
   var COLORS = { line: "#1f5fa8", band: "rgba(31,95,168,0.16)", bandEdge: "rgba(31,95,168,0.35)",
     fit: "#d9822b", base: "#1b7f3b", warn: "#d59b00", alarm: "#b3261e", vib: "#5d6d7e",
     vibBand: "rgba(93,109,126,0.35)", open: "#1f5fa8", close: "#7a4cc2" };
@@ -100,9 +101,12 @@
   var TIME_AXIS = { values: utcTicks, space: 70 };
   var UTC = function (ts) { return uPlot.tzDate(new Date(ts * 1000), "Etc/UTC"); };
 
-  function hideLegendEntries(u, indices) {
-    var rows = u.root.querySelectorAll(".u-legend .u-series");
-    indices.forEach(function (i) { if (rows[i]) { rows[i].style.display = "none"; } });
+  function hideLegendEntries(u, labels) {
+    // legend rows that only repeat another (a band's lower edge, the time column)
+    Array.prototype.forEach.call(u.root.querySelectorAll(".u-legend .u-series"), function (row) {
+      var label = row.querySelector(".u-label");
+      if (label && labels.indexOf(label.textContent) >= 0) { row.style.display = "none"; }
+    });
   }
 
   function constant(arr, v) { return arr.map(function () { return v; }); }
@@ -136,7 +140,7 @@
       cursor: { sync: { key: "breaker" } },
       hooks: { draw: [markerHook(p.alarms || [])] } };
     var u = draw("param-" + name, el, opts, data);
-    hideLegendEntries(u, [0, 3]);
+    hideLegendEntries(u, ["Time", "95 % CI (lower)"]);
   }
 
   function driftChart(name, p) {
@@ -162,7 +166,7 @@
       cursor: { sync: { key: "breaker" } },
       hooks: { draw: [markerHook(p.alarms || [])] } };
     var u = draw("drift-" + name, el, opts, [d.t, d.s, constant(d.t, d.warning), constant(d.t, d.alarm)]);
-    hideLegendEntries(u, [0]);
+    hideLegendEntries(u, ["Time"]);
   }
 
   function charChart(key, label, unit, chars) {
@@ -184,7 +188,7 @@
     var opts = { height: 170, series: series, scales: { x: { time: true } }, legend: { live: false }, tzDate: UTC,
       axes: [TIME_AXIS, { size: 64, label: unit, labelSize: 16 }], cursor: { sync: { key: "breaker" } } };
     var u = draw("char-" + key, el, opts, data);
-    hideLegendEntries(u, [0]);
+    hideLegendEntries(u, ["Time"]);
   }
 
   function loadTrends() {
@@ -270,7 +274,7 @@
         axes: [{ label: "time [ms]", labelSize: 18 }, { size: 60, label: "residual [mrad]", labelSize: 16 }],
         cursor: { sync: sync }, hooks: { drawClear: [spansHook(spans, true)] } },
         [tms, r, has.map(function (v) { return v === null ? null : two; }), has.map(function (v) { return v === null ? null : -two; }), mean]);
-      hideLegendEntries(charts.residual, [3]);
+      hideLegendEntries(charts.residual, ["−2σ"]);
     } else {
       resEl.textContent = "The residual appears when the fit is done.";
       if (charts.residual) { charts.residual.destroy(); delete charts.residual; }
@@ -373,7 +377,7 @@
 
   function start() {
     loadPage()
-      .then(function () { body.setAttribute("data-ready", "1"); })
+      .then(function () { performance.mark("hvcb-ready"); body.setAttribute("data-ready", "1"); })
       .catch(function (e) { body.setAttribute("data-ready", "error"); throw e; });
     if (marker !== null && liveEl) { setTimeout(poll, pollMs); }
   }
