@@ -3,7 +3,11 @@ uPlot), signed in with an API key, served by the API's own app. ``mount_web(app)
 
 from __future__ import annotations
 
+from urllib.parse import quote
+
 from fastapi import FastAPI, HTTPException, Request
+from fastapi.exception_handlers import request_validation_exception_handler
+from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse, RedirectResponse
 from fastapi.staticfiles import StaticFiles
 from starlette.exceptions import HTTPException as StarletteHTTPException
@@ -36,12 +40,21 @@ def mount_web(app: FastAPI) -> None:
             resp = JSONResponse({"detail": exc.message}, status_code=status) if request.url.path.startswith("/ui/") \
                 else page(request, "error.html", {"status": status, "message": exc.message}, status_code=status)
         elif exc.kind == "missing":
-            return security_headers(RedirectResponse(f"/signin?next={request.url.path}", status_code=303))
+            return security_headers(RedirectResponse(f"/signin?next={quote(request.url.path)}", status_code=303))
         else:
             resp = page(request, "error.html", {"status": status, "message": exc.message}, status_code=status)
         if exc.kind == "invalid":
             resp.delete_cookie(auth.COOKIE, path="/")
         return security_headers(resp)
+
+    @app.exception_handler(RequestValidationError)
+    async def _invalid(request: Request, exc: RequestValidationError):
+        if _is_web(request) and not request.url.path.startswith(("/ui/", "/static/")):
+            what = "; ".join(f"{'.'.join(str(p) for p in e.get('loc', ())[1:]) or 'request'}: {e.get('msg', '')}"
+                             for e in exc.errors())
+            return page(request, "error.html", {"status": 422, "message": f"the form was not complete: {what}"},
+                        status_code=422)
+        return await request_validation_exception_handler(request, exc)
 
     default_http = app.exception_handlers.get(StarletteHTTPException)
 

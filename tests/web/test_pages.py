@@ -148,7 +148,7 @@ def test_operator_acknowledges_an_alarm_and_a_reader_cannot(live, browser):
     screenshot(page, "alarms")
     card.locator('input[name="comment"]').fill("buffer inspection booked")
     card.locator("[data-ack]").click()
-    page.wait_for_selector(f'[data-alarm-id="{alarm_id}"].state-acknowledged')
+    page.wait_for_selector(f'[data-alarm-id="{alarm_id}"][data-state="acknowledged"]')
     assert "buffer inspection booked" in page.locator(f'[data-alarm-id="{alarm_id}"]').inner_text()
     assert page.locator("text=Reset baseline…").count() == 0  # admin only
     clean(log)

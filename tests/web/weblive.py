@@ -171,8 +171,14 @@ def canvas_ink(page, selector: str) -> int:
 def screenshot(page, name: str) -> None:
     target = os.environ.get("HVCB_WEB_SCREENSHOTS")
     if target:
+        from PIL import Image
+
         Path(target).mkdir(parents=True, exist_ok=True)
-        page.screenshot(path=str(Path(target) / f"{name}.png"), full_page=True)
+        path = Path(target) / f"{name}.png"
+        page.screenshot(path=str(path), full_page=True)
+        with Image.open(path) as im:  # 256-colour palette: a third of the size, same look
+            small = im.convert("RGB").quantize(colors=256, method=Image.Quantize.MEDIANCUT)
+        small.save(path, optimize=True)
 
 
 def slug(text: str) -> str:
