@@ -72,37 +72,42 @@ def recent_values(session: Session, *, breaker_id: int, name: str, limit: int = 
     return list(reversed([tuple(r) for r in session.execute(q)]))
 
 
+def has_done_fit(session: Session, *, breaker_id: int) -> bool:
+    return session.scalar(select(FitRow.id).where(FitRow.breaker_id == breaker_id, FitRow.status == "done")
+                          .limit(1)) is not None
+
+
 # -- breaker page ------------------------------------------------------------------------------
-def parameter_columns(session: Session, *, breaker_id: int) -> dict[str, dict[str, list]]:
-    """Every stored parameter of the breaker, column-wise and oldest first:
-    {name: {"t": [datetime], "operation_id": [...], "value": [...], "lo": [...], "hi": [...],
-    "identifiable": [...]}}."""
-    q = (select(ParameterValueRow.name, ParameterValueRow.occurred_at, ParameterValueRow.operation_id,
-                ParameterValueRow.value, ParameterValueRow.ci_low, ParameterValueRow.ci_high,
-                ParameterValueRow.identifiable)
-         .where(ParameterValueRow.breaker_id == breaker_id)
-         .order_by(ParameterValueRow.name, ParameterValueRow.occurred_at, ParameterValueRow.id))
-    out: dict[str, dict[str, list]] = {}
-    for name, t, op_id, value, lo, hi, ident in session.execute(q):
-        col = out.get(name)
-        if col is None:
-            col = out[name] = {"t": [], "operation_id": [], "value": [], "lo": [], "hi": [], "identifiable": []}
-        col["t"].append(t)
-        col["operation_id"].append(op_id)
-        col["value"].append(value)
-        col["lo"].append(lo)
-        col["hi"].append(hi)
-        col["identifiable"].append(bool(ident))
-    return out
-
-
-def characteristics_rows(session: Session, *, breaker_id: int) -> list[tuple]:
-    """(occurred_at, kind, characteristics dict) of every done fit of the breaker, oldest first."""
+def characteristics_rows(session: Session, *, breaker_id: int, operation_ids: list[int] | None = None) -> list[tuple]:
+    """(occurred_at, kind, characteristics dict) of the breaker's done fits (or of those
+    operations), oldest first."""
     q = (select(OperationRow.occurred_at, FitRow.kind, FitRow.characteristics)
          .join(OperationRow, OperationRow.id == FitRow.operation_id)
-         .where(FitRow.breaker_id == breaker_id, FitRow.status == "done")
-         .order_by(OperationRow.occurred_at, OperationRow.id))
+         .where(FitRow.breaker_id == breaker_id, FitRow.status == "done"))
+    if operation_ids is not None:
+        q = q.where(FitRow.operation_id.in_(operation_ids))
+    return [tuple(r) for r in session.execute(q.order_by(OperationRow.occurred_at, OperationRow.id))]
+
+
+def parameter_rows_after(session: Session, *, breaker_id: int, after_id: int) -> list[tuple]:
+    """(id, name, occurred_at, operation_id, value, ci_low, ci_high, identifiable) of the breaker's
+    parameter values stored after row ``after_id``, oldest first: the trend cache's increment."""
+    q = (select(ParameterValueRow.id, ParameterValueRow.name, ParameterValueRow.occurred_at,
+                ParameterValueRow.operation_id, ParameterValueRow.value, ParameterValueRow.ci_low,
+                ParameterValueRow.ci_high, ParameterValueRow.identifiable)
+         .where(ParameterValueRow.breaker_id == breaker_id, ParameterValueRow.id > after_id)
+         .order_by(ParameterValueRow.occurred_at, ParameterValueRow.id))
     return [tuple(r) for r in session.execute(q)]
+
+
+def trend_version(session: Session, *, breaker_id: int) -> tuple:
+    """Changes whenever the breaker page's trends change: parameter rows, alarms, baseline reset."""
+    pv = session.execute(select(func.count(), func.max(ParameterValueRow.id))
+                         .where(ParameterValueRow.breaker_id == breaker_id)).one()
+    al = session.execute(select(func.count(), func.max(AlarmRow.updated_at))
+                         .where(AlarmRow.breaker_id == breaker_id)).one()
+    reset = session.scalar(select(BreakerRow.baseline_reset_at).where(BreakerRow.id == breaker_id))
+    return (int(pv[0] or 0), int(pv[1] or 0), int(al[0] or 0), str(al[1]), str(reset))
 
 
 def operations_page(session: Session, *, breaker_id: int, page: int, per_page: int) -> tuple[list[OperationRow], int]:

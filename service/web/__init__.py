@@ -24,12 +24,12 @@ def _is_web(request: Request) -> bool:
 def mount_web(app: FastAPI) -> None:
     from . import auth
     from .routes import router
-    from .series import DriftTraces
+    from .trends import TrendStore
 
     settings = app.state.settings
     app.state.web_signer = auth.SessionSigner(auth.load_secret(settings), settings.web.session_hours * 3600.0)
     app.state.web_templates = build_templates()
-    app.state.web_drift = DriftTraces()
+    app.state.web_trends = TrendStore()
     app.include_router(router)
     app.mount("/static", StaticFiles(directory=HERE / "static"), name="static")
 

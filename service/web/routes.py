@@ -15,6 +15,7 @@ from fastapi import APIRouter, Depends, File, Form, HTTPException, Path as PathP
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import JSONResponse, RedirectResponse, Response
 from sqlalchemy.exc import IntegrityError
+from starlette.background import BackgroundTask
 
 from drivers.capture import CaptureError
 from service.storage import crud, crud_web
@@ -23,7 +24,7 @@ from service.storage.models import DiagnosisRow, utcnow
 from . import auth
 from .auth import WebAuthError, WebUser
 from .render import page, security_headers
-from .series import CHARACTERISTICS, characteristics_series, epoch, operation_curves, sparkline
+from .series import CHARACTERISTICS, operation_curves, sparkline
 
 router = APIRouter(include_in_schema=False)
 
@@ -113,8 +114,7 @@ def breaker_status(session, breaker_id: int, settings, alarms) -> str:
     from service.jobs.fit import drift_status
 
     status = drift_status(session, breaker_id=breaker_id, settings=settings.drift_settings)
-    if not alarms and crud.latest_fit(session, breaker_id=breaker_id, kind="open") is None \
-            and crud.latest_fit(session, breaker_id=breaker_id, kind="close") is None:
+    if not alarms and not crud_web.has_done_fit(session, breaker_id=breaker_id):
         return "unknown"
     return status
 
@@ -155,7 +155,11 @@ def fleet(request: Request, user: Reader):
     settings = request.app.state.settings
     with _session(request) as session:
         rows = _fleet(session, settings)
-        return page(request, "fleet.html", {"rows": rows, "nav": "fleet"})
+        resp = page(request, "fleet.html", {"rows": rows, "nav": "fleet"})
+    # engineers go from here to a breaker: have its trends ready (a long history takes a moment)
+    resp.background = BackgroundTask(request.app.state.web_trends.warm, request.app.state.Session,
+                                     [r["breaker"].id for r in rows], settings)
+    return resp
 
 
 # -- breaker -----------------------------------------------------------------------------------
@@ -172,8 +176,6 @@ def breaker_page(request: Request, breaker_id: Id, user: Reader,
                "ops": ops, "total": total, "page_no": page_no, "pages": pages,
                "daq": daq_states(session, settings).get(b.id),
                "last": crud_web.last_operation_times(session, breaker_id=b.id),
-               "opening": crud.latest_fit(session, breaker_id=b.id, kind="open"),
-               "closing": crud.latest_fit(session, breaker_id=b.id, kind="close"),
                "watched": dict(settings.drift_settings.watched), "nav": "fleet",
                "OPENING": OPENING, "CLOSING": CLOSING, "CHARACTERISTICS": CHARACTERISTICS}
         return page(request, "breaker.html", ctx)
@@ -182,34 +184,11 @@ def breaker_page(request: Request, breaker_id: Id, user: Reader,
 @router.get("/ui/breakers/{breaker_id}/trends.json")
 def breaker_trends(request: Request, breaker_id: Id, user: Reader):
     """Every parameter with its CI, the baseline, the drift statistic and alarm markers; the
-    travel characteristics. One request for the whole breaker page."""
-    settings = request.app.state.settings
-    ds = settings.drift_settings
+    travel characteristics. One request for the whole breaker page (service/web/trends.py)."""
     with _session(request) as session:
         b = crud.get_breaker(session, breaker_id=breaker_id) or _not_found(f"breaker {breaker_id}")
-        cols = crud_web.parameter_columns(session, breaker_id=b.id)
-        chars = characteristics_series(crud_web.characteristics_rows(session, breaker_id=b.id))
-        alarms = crud.list_alarms(session, state="all", breaker_id=b.id)
-        reset_at = b.baseline_reset_at
-    params = {}
-    for name in OPENING + CLOSING:
-        c = cols.get(name)
-        if not c:
-            continue
-        entry = {"unit": UNITS[name], "t": [epoch(t) for t in c["t"]], "value": c["value"], "lo": c["lo"],
-                 "hi": c["hi"], "op": c["operation_id"], "drift": None, "alarms": []}
-        if name in ds.watched:
-            keep = [i for i, ok in enumerate(c["identifiable"]) if ok and (reset_at is None or c["t"][i] >= reset_at)]
-            entry["drift"] = request.app.state.web_drift.trace(
-                b.id, name, reset_at, [c["operation_id"][i] for i in keep], [c["t"][i] for i in keep],
-                [c["value"][i] for i in keep], [c["lo"][i] for i in keep], [c["hi"][i] for i in keep], ds)
-        op_time = dict(zip(c["operation_id"], entry["t"]))
-        entry["alarms"] = [{"t": op_time.get(a.operation_id, epoch(a.raised_at)), "level": a.level,
-                            "state": a.state, "id": a.id} for a in alarms if a.parameter == name]
-        params[name] = entry
-    body = {"breaker_id": breaker_id, "params": params, "characteristics": chars,
-            "characteristic_labels": [[k, label, unit] for k, label, unit, _ in CHARACTERISTICS]}
-    return security_headers(JSONResponse(body))
+        body = request.app.state.web_trends.body(session, b, request.app.state.settings)
+    return security_headers(Response(body, media_type="application/json"))
 
 
 @router.post("/breakers/{breaker_id}/baseline/reset")

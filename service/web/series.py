@@ -53,6 +53,25 @@ def minmax_buckets(t: np.ndarray, y: np.ndarray, buckets: int) -> tuple[list, li
     return t[edges[:-1]].tolist(), lo.tolist(), hi.tolist()
 
 
+def minmax_indices(y, buckets: int) -> np.ndarray:
+    """Indices to plot ``y`` with at most ~2 points per bucket: each bucket's minimum and maximum,
+    in order, plus the last sample. NaN/None are skipped. All indices when ``y`` is short."""
+    y = np.asarray([np.nan if v is None else v for v in y], dtype=float)
+    n = y.size
+    if n <= 2 * buckets:
+        return np.arange(n)
+    edges = np.linspace(0, n, buckets + 1).astype(int)
+    keep = []
+    for a, b in zip(edges[:-1], edges[1:]):
+        seg = y[a:b]
+        if seg.size == 0 or np.all(np.isnan(seg)):
+            continue
+        i, j = a + int(np.nanargmin(seg)), a + int(np.nanargmax(seg))
+        keep.extend((i, j) if i <= j else (j, i))
+    keep.append(n - 1)
+    return np.unique(np.asarray(keep, dtype=int))
+
+
 def sparkline(values: list[float], width: float = 120, height: float = 28, pad: float = 2) -> str:
     """SVG polyline points for a small trend (oldest first)."""
     v = [float(x) for x in values if x is not None and math.isfinite(float(x))]

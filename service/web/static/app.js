@@ -141,6 +141,7 @@
       hooks: { draw: [markerHook(p.alarms || [])] } };
     var u = draw("param-" + name, el, opts, data);
     hideLegendEntries(u, ["Time", "95 % CI (lower)"]);
+    note(box, p);
   }
 
   function driftChart(name, p) {
@@ -173,11 +174,11 @@
     var box = $('[data-char="' + key + '"]');
     if (!box) { return; }
     var el = $(".chart", box);
-    var tables = [], series = [{}];
+    var tables = [], series = [{}], per = chars[key] || {};
     ["open", "close"].forEach(function (kind) {
-      var c = chars[kind];
+      var c = per[kind];
       if (c && c.t.length) {
-        tables.push([c.t, c[key]]);
+        tables.push([c.t, c.v]);
         series.push({ label: kind === "open" ? "opening" : "closing", stroke: COLORS[kind], width: 1.4,
           spanGaps: true, points: { show: c.t.length < 120, size: 4 } });
       }
@@ -189,6 +190,14 @@
       axes: [TIME_AXIS, { size: 64, label: unit, labelSize: 16 }], cursor: { sync: { key: "breaker" } } };
     var u = draw("char-" + key, el, opts, data);
     hideLegendEntries(u, ["Time"]);
+  }
+
+  function note(box, p) {
+    // say when a long history is drawn decimated
+    var n = $(".chart-note", box);
+    if (!n) { n = document.createElement("div"); n.className = "chart-note small muted"; box.appendChild(n); }
+    n.textContent = p.n > p.shown ? p.n.toLocaleString("en") + " fits, drawn as the min/max of " +
+      Math.round(p.shown / 2).toLocaleString("en") + " groups" : "";
   }
 
   function loadTrends() {
