@@ -3,6 +3,9 @@ uPlot), signed in with an API key, served by the API's own app. ``mount_web(app)
 
 from __future__ import annotations
 
+import logging
+import threading
+from contextlib import asynccontextmanager
 from urllib.parse import quote
 
 from fastapi import FastAPI, HTTPException, Request
@@ -12,13 +15,48 @@ from fastapi.responses import JSONResponse, RedirectResponse
 from fastapi.staticfiles import StaticFiles
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
+from service.storage import crud
+
 from .render import HERE, build_templates, page, security_headers
+
+log = logging.getLogger("hvcb.web")
 
 
 def _is_web(request: Request) -> bool:
     """A page or page-data request (not the JSON API, docs or metrics)."""
     p = request.url.path
     return not p.startswith(("/api/", "/docs", "/redoc", "/openapi.json", "/metrics", "/healthz"))
+
+
+def _warm_at_start(app: FastAPI) -> None:
+    """After the app's own start-up, fill the trend cache of every breaker in a background thread,
+    so the first breaker page after a restart does not read a long history while the user waits."""
+    inner = app.router.lifespan_context
+
+    @asynccontextmanager
+    async def lifespan(a):
+        async with inner(a) as state:
+            store, stop = a.state.web_trends, threading.Event()
+
+            def warm():
+                try:
+                    with a.state.Session() as session:
+                        ids = [b.id for b in crud.list_breakers(session)]
+                    store.warm(a.state.Session, ids, a.state.settings, stop=stop)
+                except Exception:  # a cold cache is only slower; the page builds it on demand
+                    log.warning("trend cache warm-up failed", exc_info=True)
+                finally:
+                    store.warmed.set()
+
+            thread = threading.Thread(target=warm, name="hvcb-web-warm", daemon=True)
+            thread.start()
+            try:
+                yield state
+            finally:
+                stop.set()
+                thread.join(timeout=30)
+
+    app.router.lifespan_context = lifespan
 
 
 def mount_web(app: FastAPI) -> None:
@@ -30,6 +68,7 @@ def mount_web(app: FastAPI) -> None:
     app.state.web_signer = auth.SessionSigner(auth.load_secret(settings), settings.web.session_hours * 3600.0)
     app.state.web_templates = build_templates()
     app.state.web_trends = TrendStore()
+    _warm_at_start(app)
     app.include_router(router)
     app.mount("/static", StaticFiles(directory=HERE / "static"), name="static")
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass, field
-from threading import Lock
+from threading import Event, Lock
 
 from service.storage import crud, crud_web
 
@@ -49,6 +49,7 @@ class TrendStore:
         self.buckets = buckets
         self._entries: dict[int, _Entry] = {}
         self._lock = Lock()
+        self.warmed = Event()  # set when the start-up warm-up has finished
 
     def body(self, session, breaker, settings) -> bytes:
         """The JSON body of /ui/breakers/{id}/trends.json."""
@@ -64,9 +65,11 @@ class TrendStore:
             self._entries[breaker.id] = entry
             return entry.body
 
-    def warm(self, Session, breaker_ids: list[int], settings) -> None:
-        """Bring the cache up to date (run after a fleet page is sent)."""
+    def warm(self, Session, breaker_ids: list[int], settings, stop=None) -> None:
+        """Bring the cache up to date (at start-up and after a fleet page is sent)."""
         for breaker_id in breaker_ids:
+            if stop is not None and stop.is_set():
+                return
             with Session() as session:
                 breaker = crud.get_breaker(session, breaker_id=breaker_id)
                 if breaker is not None:

@@ -93,7 +93,7 @@ def start_server(tmp_path, *, name: str | None = None, alarms: dict | None = Non
     from service.storage.db import upgrade
 
     data = tmp_path / "data"
-    data.mkdir()
+    data.mkdir(exist_ok=True)  # an existing one: the service restarts on it
     url = f"sqlite:///{data / 'hvcb.sqlite3'}"
     upgrade(url)
     settings = load_settings(data_dir=data, database_url=url, broker_url="", executor="inline",
@@ -110,9 +110,9 @@ def start_server(tmp_path, *, name: str | None = None, alarms: dict | None = Non
         if time.monotonic() > deadline or not thread.is_alive():
             raise RuntimeError("the test server did not start")
         time.sleep(0.05)
-    keys = {"admin": shown[0]}
+    keys = {"admin": shown[0]} if shown else {}
     with app.state.Session() as s, s.begin():
-        for role in ("reader", "operator"):
+        for role in ("reader", "operator", "admin")[: 2 if shown else 3]:
             keys[role] = crud.create_api_key(s, name=name or f"web-{role}", role=role)[1]
 
     def stop():
@@ -175,7 +175,7 @@ def screenshot(page, name: str) -> None:
 
         Path(target).mkdir(parents=True, exist_ok=True)
         path = Path(target) / f"{name}.png"
-        page.screenshot(path=str(path), full_page=True)
+        page.screenshot(path=str(path), full_page=True, animations="disabled")
         with Image.open(path) as im:  # 256-colour palette: a third of the size, same look
             small = im.convert("RGB").quantize(colors=256, method=Image.Quantize.MEDIANCUT)
         small.save(path, optimize=True)
