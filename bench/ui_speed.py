@@ -41,6 +41,12 @@ sys.path.insert(0, str(ROOT / "tests" / "web"))
 from weblive import BREAKER_FILE, CHROMIUM_ARGS, T0, chromium_path, start_server, synth  # noqa: E402
 
 
+def shared_dir() -> Path:
+    import os
+
+    return Path(os.environ.get("HVCB_SHARED_DIR", ROOT.parent / "shared"))
+
+
 def fake_result(kind: str, design: dict, rng, leak: float) -> dict:
     names = ("AO", "BO", "DO", "EO") if kind == "open" else ("AC", "BC", "CC")
     params, ci = {}, {}
@@ -130,6 +136,11 @@ def main(argv=None) -> int:
             # two real captures, fitted by the real estimator, for the operation page
             op_ids = {kind: live.ingest(synth(breaker, kind, 7, None, T0 - timedelta(days=1)), kind)
                       for kind in ("open", "close")}
+            sample = shared_dir() / "samples" / "close-nominal.cfg"  # 250 ms, 32,000 samples
+            if sample.exists():
+                from service.acquisition.capture_file import read_capture
+
+                op_ids["close-nominal sample"] = live.ingest(read_capture(sample), "close")
             live.wait_fits()
             cold_s = cold_build_s(live)
         finally:
