@@ -25,14 +25,13 @@ from . import auth
 from .auth import WebAuthError, WebUser
 from .render import page, security_headers
 from .series import CHARACTERISTICS, operation_curves, sparkline
+from .trends import CLOSING, OPENING, UNITS
 
 router = APIRouter(include_in_schema=False)
 
 MAX_ID = 2_147_483_647
 Id = Annotated[int, PathParam(ge=1, le=MAX_ID)]
 PER_PAGE = 50
-OPENING, CLOSING = ("AO", "BO", "DO", "EO"), ("AC", "BC", "CC")
-UNITS = {"AO": "s⁻²", "BO": "s⁻²", "DO": "s⁻¹", "EO": "s⁻²", "AC": "s⁻²", "BC": "–", "CC": "s⁻²", "DC": "s⁻²"}
 
 Reader = Annotated[WebUser, Depends(auth.require_page("reader"))]
 

@@ -19,7 +19,7 @@ from .series import (CHARACTERISTICS, DriftTraces, characteristics_series, epoch
                      minmax_indices)
 
 OPENING, CLOSING = ("AO", "BO", "DO", "EO"), ("AC", "BC", "CC")
-UNITS = {"AO": "s⁻²", "BO": "s⁻²", "DO": "s⁻¹", "EO": "s⁻²", "AC": "s⁻²", "BC": "–", "CC": "s⁻²"}
+UNITS = {"AO": "s⁻²", "BO": "s⁻²", "DO": "s⁻¹", "EO": "s⁻²", "AC": "s⁻²", "BC": "–", "CC": "s⁻²", "DC": "s⁻²"}
 DISPLAY_BUCKETS = 600  # per chart: ~1,200 plotted points, more than a chart has pixel columns
 
 
