@@ -8,10 +8,10 @@ from __future__ import annotations
 
 from datetime import datetime
 
-from sqlalchemy import func, select, update
+from sqlalchemy import Integer, cast, func, select, update
 from sqlalchemy.orm import Session
 
-from .models import (AlarmRow, ApiKeyRow, BreakerRow, DiagnosisRow, FitRow, OperationRow,
+from .models import (AlarmRow, ApiKeyRow, BreakerRow, DaqStatusRow, DiagnosisRow, FitRow, OperationRow,
                      ParameterValueRow, WebSessionRow, utcnow)
 
 
@@ -151,4 +151,7 @@ def change_marker(session: Session) -> str:
     diag = session.execute(select(func.count(), func.max(DiagnosisRow.finished_at))
                            .where(DiagnosisRow.status.in_(("done", "failed")))).one()
     brk = session.execute(select(func.count(), func.max(BreakerRow.baseline_reset_at))).one()
-    return "|".join(str(v) for row in (ops, fits, alarms, diag, brk) for v in row)
+    # the DAQ links: connection state and error counters (not the heartbeat, which ticks every second)
+    daq = session.execute(select(func.count(), func.sum(cast(DaqStatusRow.connected, Integer)),
+                                 func.sum(DaqStatusRow.frames_dropped), func.sum(DaqStatusRow.crc_errors))).one()
+    return "|".join(str(v) for row in (ops, fits, alarms, diag, brk, daq) for v in row)

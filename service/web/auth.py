@@ -170,9 +170,9 @@ def require_page(role: str = "reader"):
 
     def dependency(request: Request) -> WebUser:
         user = current_user(request)
+        request.state.web_user = user  # the error page shows who is signed in too
         if not user.can(role):
             raise WebAuthError("forbidden", f"this needs the {role} role; you are signed in as {user.role}")
-        request.state.web_user = user
         return user
 
     return dependency

@@ -21,6 +21,15 @@ def live(tmp_path_factory, breaker, browser):
     try:
         for kind, cap in history(breaker):
             app.ingest(cap, kind)
+        from weblive import BREAKER_FILE
+
+        from service.storage import crud
+
+        with app.Session() as s, s.begin():  # a second bay, commissioned, nothing recorded yet
+            text = BREAKER_FILE.read_text().replace('name = "reference-252kV"', 'name = "bay-2 252kV"')
+            cam = (BREAKER_FILE.parent / "reference-252kV.cam.csv").read_text()
+            crud.upsert_breaker(s, name="bay-2 252kV", tag="Q2", breaker_file=text,
+                                cam_file_name="reference-252kV.cam.csv", cam_table=cam)
         app.wait_fits()
         yield app
     finally:
@@ -49,6 +58,14 @@ def api(live, path: str, role: str = "reader"):
 
 def test_sign_in_then_the_fleet_shows_the_breaker_with_its_status(live, ctx):
     context, log = ctx
+    from service.storage import crud
+
+    with live.Session() as s, s.begin():  # what the acquisition side reports for the DAQ link
+        crud.report_daq(s, breaker_id=1, connected=True, frames=52_000, frames_dropped=3, crc_errors=1, captures=15)
+    first = log.watch(context.new_page())
+    first.goto(live.base + "/signin")
+    screenshot(first, "signin")
+    first.close()
     page = sign_in(context, live, "reader", log)
     health = api(live, "/api/v1/breakers/1/health")
     assert health["status"] in ("warning", "alarm")  # the leak in the history has raised the DO alarm
@@ -59,6 +76,11 @@ def test_sign_in_then_the_fleet_shows_the_breaker_with_its_status(live, ctx):
     assert health["status"] in badge.get_attribute("class")  # the status colour class
     assert row.locator("svg.spark polyline").count() == 2  # DO and BO sparklines
     assert "DO" in row.inner_text()
+    daq = row.locator("td").last.inner_text()
+    assert "connected" in daq and "dropped 3" in daq and "CRC 1" in daq
+    other = page.locator('tr[data-breaker-id="2"]')
+    assert other.locator("[data-status]").inner_text().strip().lower() == "unknown"
+    assert "no fit yet" in other.inner_text() and "no DAQ reported" in other.inner_text()
     # the session cookie is HttpOnly and SameSite=Strict; the key is nowhere in the page or URL
     (cookie,) = [c for c in context.cookies() if c["name"] == "hvcb_session"]
     assert cookie["httpOnly"] and cookie["sameSite"] == "Strict"
