@@ -17,6 +17,7 @@ import secrets
 from dataclasses import dataclass
 from datetime import timedelta
 from pathlib import Path
+from urllib.parse import urlsplit
 
 from fastapi import Request
 from itsdangerous import BadSignature, SignatureExpired, URLSafeTimedSerializer
@@ -182,8 +183,11 @@ async def require_csrf(request: Request, user: WebUser) -> None:
     """A POST must carry the session's CSRF token (form field ``csrf_token`` or header X-CSRF-Token)
     and, when the browser says where it comes from, come from this site."""
     origin = request.headers.get("origin")
-    if origin and origin != f"{request.url.scheme}://{request.url.netloc}":
-        raise WebAuthError("csrf", "this form was sent from another site")
+    if origin:
+        # compare hosts only: behind a TLS proxy the app may see http while the browser says https
+        hosts = {request.url.netloc, request.headers.get("x-forwarded-host")}
+        if urlsplit(origin).netloc not in hosts:
+            raise WebAuthError("csrf", "this form was sent from another site")
     sent = request.headers.get("x-csrf-token")
     if not sent:
         form = await request.form()
