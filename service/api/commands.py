@@ -103,7 +103,7 @@ def cmd_serve(args) -> int:
     settings = _settings(args, host=args.host, port=args.port)
     _migrate(settings)
     app = create_app(settings, on_key=_print_key(settings))
-    print(f"hvcb serving on http://{settings.host}:{settings.port} (API docs at /docs)", flush=True)
+    print(f"hvcb serving on http://{settings.host}:{settings.port}/ (web page; API docs at /docs)", flush=True)
     uvicorn.run(app, host=settings.host, port=settings.port, log_level="warning")
     return 0
 
