@@ -81,6 +81,17 @@ class AcquisitionSettings(BaseModel):
         return self
 
 
+class WebSettings(BaseModel):
+    """``[web]``: the engineers' web page (service/web/)."""
+
+    model_config = {"extra": "forbid"}
+    session_hours: float = Field(8.0, gt=0, le=24 * 30, description="a sign-in lasts this long")
+    secure_cookie: Literal["auto", "always", "never"] = Field(
+        "auto", description="Secure flag of the session cookie; auto = when the request came over HTTPS")
+    poll_s: float = Field(3.0, gt=0, le=300, description="how often open pages ask for news")
+    secret: str = Field("", description="cookie signing key; empty = generated once into <data_dir>/web.secret")
+
+
 class Settings(BaseSettings):
     """Everything the service, its workers and its commands read."""
 
@@ -117,6 +128,7 @@ class Settings(BaseSettings):
                                             "generated when empty")
     acquisition: AcquisitionSettings = Field(default_factory=AcquisitionSettings,
                                              description="the DAQ driver ([acquisition] table)")
+    web: WebSettings = Field(default_factory=WebSettings, description="the web page ([web] table)")
     alarms: dict = Field(default_factory=dict, description="drift detector settings, see docs/alarms.md "
                          "(service.alarms.settings.DriftSettings)")
     iec61850_port: int | None = Field(None, ge=1, le=65535,

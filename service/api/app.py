@@ -123,6 +123,10 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
 
     app.include_router(router)
 
+    from service.web import mount_web  # the engineers' web page at /
+
+    mount_web(app)
+
     @app.exception_handler(OperationalError)
     @app.exception_handler(DBAPIError)
     async def _db_down(request: Request, exc: Exception):

@@ -107,7 +107,7 @@ def cmd_serve(args) -> int:
         preflight(settings.iec61850_port)
     _migrate(settings)
     app = create_app(settings, on_key=_print_key(settings))
-    print(f"hvcb serving on http://{settings.host}:{settings.port} (API docs at /docs)", flush=True)
+    print(f"hvcb serving on http://{settings.host}:{settings.port}/ (web page; API docs at /docs)", flush=True)
     uvicorn.run(app, host=settings.host, port=settings.port, log_level="warning")
     return 0
 
@@ -150,7 +150,8 @@ def cmd_demo(args) -> int:
         settings = _settings(args, host=args.host, port=args.port, data_dir=demo_dir, database_url="",
                              broker_url="", executor="local", acquisition=acquisition)
         _migrate(settings)
-        app = create_app(settings, on_key=_print_key(settings))
+        keys: list[str] = []  # the demo's fresh admin key, shown with the page's URL
+        app = create_app(settings, on_key=keys.append)
         server = uvicorn.Server(uvicorn.Config(app, host=settings.host, port=settings.port, log_level="warning"))
         url = f"http://{settings.host}:{settings.port}"
         stop = threading.Event()
@@ -160,7 +161,10 @@ def cmd_demo(args) -> int:
                 time.sleep(0.1)
             if stop.is_set():
                 return
-            print(f"\nhvcb demo running at {url}  (API docs: {url}/docs)\n"
+            key = keys[0] if keys else settings.key_file.read_text().strip()
+            print(f"\nhvcb demo: open {url}/ in a browser and sign in with this API key (admin):\n"
+                  f"  {key}\n"
+                  f"  (also in {settings.key_file}; API docs at {url}/docs)\n"
                   f"  DAQ: Modbus TCP emulator at 127.0.0.1:{port} playing the reference breaker's history\n"
                   f"  KEY=$(cat {settings.key_file})\n"
                   f"  curl -s -H \"X-API-Key: $KEY\" {url}/api/v1/breakers/1/health\n"

@@ -260,26 +260,12 @@ def _pair_from_zip(blob: bytes, cap: int) -> tuple[bytes, bytes, str]:
         raise HTTPException(422, f"cannot extract the archive: {exc}") from None
 
 
-@router.post("/breakers/{breaker_id}/captures", response_model=s.UploadAccepted, status_code=202,
-             responses={**AUTH, **NOT_FOUND, 413: {"model": s.Message}, 422: {"model": s.Message}},
-             tags=["operations"])
-async def upload_capture(breaker_id: BreakerId, request: Request, session: SessionDep, settings: SettingsDep,
-                         monitor: MonitorDep, _: OperatorDep,
-                         files: Annotated[list[UploadFile], File(description="a .cfg and its .dat, or one .zip")],
-                         operation: Annotated[Literal["open", "close"] | None,
-                                              Form(description="inferred from the travel when omitted")] = None):
+def capture_from_upload(blobs: dict[str, bytes], row, operation: str | None, cap_bytes: int):
+    """(Capture, "open"|"close") from uploaded files {lower-case name: bytes}: a .cfg and its .dat,
+    or one .zip holding them. Raises HTTPException (413/422) with the reason in words; the web page
+    uses it too."""
     from service.acquisition.capture_file import load_comtrade_bytes
 
-    cap_bytes = settings.max_upload_bytes
-    declared = request.headers.get("content-length")
-    if declared and declared.isdigit() and int(declared) > cap_bytes + 64 * 1024:
-        raise HTTPException(413, f"upload larger than the {cap_bytes} byte limit")
-    row = _breaker_or_404(session, breaker_id)
-    blobs, budget = {}, cap_bytes
-    for f in files:
-        data = await _read_capped(f, budget)
-        budget -= len(data)
-        blobs[(f.filename or "").lower()] = data
     names = list(blobs)
     if len(names) == 1 and names[0].endswith(".zip"):
         cfg, dat, name = _pair_from_zip(blobs[names[0]], cap_bytes)
@@ -312,6 +298,28 @@ async def upload_capture(breaker_id: BreakerId, request: Request, session: Sessi
         raise
     except Exception as exc:  # the COMTRADE reader raises many types on malformed input
         raise HTTPException(422, f"malformed COMTRADE upload: {type(exc).__name__}: {exc}") from None
+    return capture, kind
+
+
+@router.post("/breakers/{breaker_id}/captures", response_model=s.UploadAccepted, status_code=202,
+             responses={**AUTH, **NOT_FOUND, 413: {"model": s.Message}, 422: {"model": s.Message}},
+             tags=["operations"])
+async def upload_capture(breaker_id: BreakerId, request: Request, session: SessionDep, settings: SettingsDep,
+                         monitor: MonitorDep, _: OperatorDep,
+                         files: Annotated[list[UploadFile], File(description="a .cfg and its .dat, or one .zip")],
+                         operation: Annotated[Literal["open", "close"] | None,
+                                              Form(description="inferred from the travel when omitted")] = None):
+    cap_bytes = settings.max_upload_bytes
+    declared = request.headers.get("content-length")
+    if declared and declared.isdigit() and int(declared) > cap_bytes + 64 * 1024:
+        raise HTTPException(413, f"upload larger than the {cap_bytes} byte limit")
+    row = _breaker_or_404(session, breaker_id)
+    blobs, budget = {}, cap_bytes
+    for f in files:
+        data = await _read_capped(f, budget)
+        budget -= len(data)
+        blobs[(f.filename or "").lower()] = data
+    capture, kind = capture_from_upload(blobs, row, operation, cap_bytes)
     session.close()
     result = monitor.ingest(capture, breaker_id=breaker_id, operation=kind, source="upload")
     return s.UploadAccepted(operation_id=result.operation_id, capture_key=result.capture_key, operation=kind,

@@ -1,0 +1,359 @@
+"""The pages: thin handlers that read through crud/crud_web and render a template.
+
+Page URLs sit at the root (``/``, ``/breakers/1``, ...); the JSON the charts and the live
+updates fetch sits under ``/ui/``. Both authenticate with the session cookie, never X-API-Key.
+"""
+
+from __future__ import annotations
+
+import io
+import zipfile
+from datetime import timedelta
+from typing import Annotated
+
+from fastapi import APIRouter, Depends, File, Form, HTTPException, Path as PathParam, Query, Request, UploadFile
+from fastapi.concurrency import run_in_threadpool
+from fastapi.responses import JSONResponse, RedirectResponse, Response
+from sqlalchemy.exc import IntegrityError
+from starlette.background import BackgroundTask
+
+from drivers.capture import CaptureError
+from service.storage import crud, crud_web
+from service.storage.models import DiagnosisRow, utcnow
+
+from . import auth
+from .auth import WebAuthError, WebUser
+from .render import page, security_headers
+from .series import CHARACTERISTICS, operation_curves, sparkline
+from .trends import CLOSING, OPENING, UNITS
+
+router = APIRouter(include_in_schema=False)
+
+MAX_ID = 2_147_483_647
+Id = Annotated[int, PathParam(ge=1, le=MAX_ID)]
+PER_PAGE = 50
+
+Reader = Annotated[WebUser, Depends(auth.require_page("reader"))]
+
+
+def poster(role: str):
+    """Dependency of a POST: signed in with ``role`` or more, and a valid CSRF token."""
+
+    async def dependency(request: Request, user: WebUser = Depends(auth.require_page(role))) -> WebUser:
+        await auth.require_csrf(request, user)
+        return user
+
+    return dependency
+
+
+ReaderPost = Annotated[WebUser, Depends(poster("reader"))]
+OperatorPost = Annotated[WebUser, Depends(poster("operator"))]
+AdminPost = Annotated[WebUser, Depends(poster("admin"))]
+
+
+def _session(request: Request):
+    return request.app.state.Session()
+
+
+def _not_found(what: str):
+    raise HTTPException(404, f"no {what}")
+
+
+# -- sign-in -----------------------------------------------------------------------------------
+@router.get("/signin")
+def signin_form(request: Request, next: str = "/"):
+    return _signin_page(request, next=next)
+
+
+def _signin_page(request: Request, *, next: str = "/", error: str | None = None, status: int = 200):
+    cookie, csrf = request.app.state.web_signer.pre_cookie()
+    resp = page(request, "signin.html", {"next": _safe_next(next), "error": error, "signin_csrf": csrf},
+                status_code=status)
+    auth.set_cookie(resp, request, auth.PRE_COOKIE, cookie, max_age=auth.PRE_MAX_AGE_S, path="/signin")
+    return resp
+
+
+def _safe_next(target: str | None) -> str:
+    """Only a local path: never redirect to another site."""
+    if not target or not target.startswith("/") or target.startswith("//") or "\\" in target:
+        return "/"
+    return target
+
+
+@router.post("/signin")
+async def signin(request: Request, api_key: Annotated[str, Form(max_length=400)] = "",
+                 csrf_token: Annotated[str, Form(max_length=200)] = "", next: Annotated[str, Form()] = "/"):
+    if not request.app.state.web_signer.check_pre(request.cookies.get(auth.PRE_COOKIE), csrf_token):
+        return _signin_page(request, next=next, error="the sign-in form expired: try again", status=403)
+    if not api_key.strip():
+        return _signin_page(request, next=next, error="enter your API key", status=401)
+    try:
+        cookie, _ = await run_in_threadpool(auth.sign_in, request, api_key)
+    except WebAuthError as exc:
+        return _signin_page(request, next=next, error=exc.message, status=401)
+    resp = RedirectResponse(_safe_next(next), status_code=303)
+    auth.set_cookie(resp, request, auth.COOKIE, cookie, max_age=int(request.app.state.web_signer.lifetime_s))
+    resp.delete_cookie(auth.PRE_COOKIE, path="/signin")
+    security_headers(resp)
+    return resp
+
+
+@router.post("/signout")
+async def signout(request: Request, user: ReaderPost):
+    await run_in_threadpool(auth.sign_out, request, user)
+    resp = RedirectResponse("/signin", status_code=303)
+    resp.delete_cookie(auth.COOKIE, path="/")
+    security_headers(resp)
+    return resp
+
+
+# -- fleet -------------------------------------------------------------------------------------
+def breaker_status(session, breaker_id: int, settings, alarms) -> str:
+    """ok / warning / alarm / unknown, as the API's health endpoint says."""
+    from service.jobs.fit import drift_status
+
+    status = drift_status(session, breaker_id=breaker_id, settings=settings.drift_settings)
+    if not alarms and not crud_web.has_done_fit(session, breaker_id=breaker_id):
+        return "unknown"
+    return status
+
+
+def daq_states(session, settings) -> dict[int, dict]:
+    """breaker id -> DAQ link state, from the same table and freshness rule as /healthz."""
+    now, timeout = utcnow(), timedelta(seconds=settings.daq_timeout_s)
+    out = {}
+    for d in crud.daq_statuses(session):
+        fresh = d.last_seen is not None and now - d.last_seen <= timeout
+        out[d.breaker_id] = {"connected": bool(d.connected and fresh), "last_seen": d.last_seen,
+                             "frames_dropped": d.frames_dropped, "crc_errors": d.crc_errors,
+                             "captures": d.captures, "detail": d.detail,
+                             "stale": d.connected and not fresh}
+    return out
+
+
+def _fleet(session, settings) -> list[dict]:
+    daq = daq_states(session, settings)
+    rows = []
+    for b in crud.list_breakers(session):
+        alarms = crud.list_alarms(session, state="active", breaker_id=b.id)
+        latest = {}
+        for name in ("DO", "BO"):
+            vals = crud_web.recent_values(session, breaker_id=b.id, name=name, limit=30)
+            if vals:
+                t, v, lo, hi = vals[-1]
+                latest[name] = {"value": v, "lo": lo, "hi": hi, "time": t, "unit": UNITS[name],
+                                "spark": sparkline([x[1] for x in vals])}
+        rows.append({"breaker": b, "status": breaker_status(session, b.id, settings, alarms),
+                     "last": crud_web.last_operation_times(session, breaker_id=b.id), "latest": latest,
+                     "alarms": alarms, "daq": daq.get(b.id)})
+    return rows
+
+
+@router.get("/")
+def fleet(request: Request, user: Reader):
+    settings = request.app.state.settings
+    with _session(request) as session:
+        rows = _fleet(session, settings)
+        resp = page(request, "fleet.html", {"rows": rows, "nav": "fleet"})
+    # engineers go from here to a breaker: have its trends ready (a long history takes a moment)
+    resp.background = BackgroundTask(request.app.state.web_trends.warm, request.app.state.Session,
+                                     [r["breaker"].id for r in rows], settings)
+    return resp
+
+
+# -- breaker -----------------------------------------------------------------------------------
+@router.get("/breakers/{breaker_id}")
+def breaker_page(request: Request, breaker_id: Id, user: Reader,
+                 page_no: Annotated[int, Query(alias="page", ge=1, le=10**6)] = 1):
+    settings = request.app.state.settings
+    with _session(request) as session:
+        b = crud.get_breaker(session, breaker_id=breaker_id) or _not_found(f"breaker {breaker_id}")
+        alarms = crud.list_alarms(session, state="active", breaker_id=b.id)
+        ops, total = crud_web.operations_page(session, breaker_id=b.id, page=page_no, per_page=PER_PAGE)
+        pages = max(1, -(-total // PER_PAGE))
+        ctx = {"b": b, "status": breaker_status(session, b.id, settings, alarms), "alarms": alarms,
+               "ops": ops, "total": total, "page_no": page_no, "pages": pages,
+               "daq": daq_states(session, settings).get(b.id),
+               "last": crud_web.last_operation_times(session, breaker_id=b.id),
+               "watched": dict(settings.drift_settings.watched), "nav": "fleet",
+               "OPENING": OPENING, "CLOSING": CLOSING, "CHARACTERISTICS": CHARACTERISTICS}
+        return page(request, "breaker.html", ctx)
+
+
+@router.get("/ui/breakers/{breaker_id}/trends.json")
+def breaker_trends(request: Request, breaker_id: Id, user: Reader):
+    """Every parameter with its CI, the baseline, the drift statistic and alarm markers; the
+    travel characteristics. One request for the whole breaker page (service/web/trends.py)."""
+    with _session(request) as session:
+        b = crud.get_breaker(session, breaker_id=breaker_id) or _not_found(f"breaker {breaker_id}")
+        body = request.app.state.web_trends.body(session, b, request.app.state.settings)
+    return security_headers(Response(body, media_type="application/json"))
+
+
+@router.post("/breakers/{breaker_id}/baseline/reset")
+def reset_baseline(request: Request, breaker_id: Id, user: AdminPost,
+                   reason: Annotated[str, Form(min_length=1, max_length=500)],
+                   confirm: Annotated[str, Form()] = ""):
+    from service.jobs.fit import reset_baseline as reset
+
+    settings = request.app.state.settings
+    if confirm != "yes":
+        raise HTTPException(400, "tick the confirmation box to reset the baseline")
+    with _session(request) as session:
+        crud.get_breaker(session, breaker_id=breaker_id) or _not_found(f"breaker {breaker_id}")
+        reset(session, breaker_id=breaker_id, by=f"{user.name} (web: {reason})", settings=settings.drift_settings)
+        session.commit()
+    return _back(request, f"/breakers/{breaker_id}")
+
+
+def _back(request: Request, default: str):
+    resp = RedirectResponse(_safe_next(request.query_params.get("back")) if request.query_params.get("back")
+                            else default, status_code=303)
+    return security_headers(resp)
+
+
+# -- operation ---------------------------------------------------------------------------------
+@router.get("/operations/{operation_id}")
+def operation_page(request: Request, operation_id: Id, user: Reader):
+    with _session(request) as session:
+        op = crud.get_operation(session, operation_id=operation_id) or _not_found(f"operation {operation_id}")
+        b = crud.get_breaker(session, breaker_id=op.breaker_id)
+        diag = crud_web.get_diagnosis(session, operation_id=op.id)
+        names = OPENING if op.kind == "open" else CLOSING
+        ctx = {"op": op, "b": b, "fit": op.fit, "diag": diag, "names": names, "units": UNITS,
+               "CHARACTERISTICS": CHARACTERISTICS, "nav": "fleet"}
+        return page(request, "operation.html", ctx)
+
+
+@router.get("/ui/operations/{operation_id}/curves.json")
+def operation_curves_json(request: Request, operation_id: Id, user: Reader):
+    from service.acquisition.capture_file import read_capture
+
+    with _session(request) as session:
+        op = crud.get_operation(session, operation_id=operation_id) or _not_found(f"operation {operation_id}")
+        breaker = crud.breaker_model(crud.get_breaker(session, breaker_id=op.breaker_id))
+        fit, path = op.fit, op.capture_path
+        try:
+            cap = read_capture(path, travel_channel=breaker.channels.get("travel", "travel"),
+                               vibration_channel=breaker.channels.get("vibration", "vibration"))
+        except CaptureError as exc:
+            return security_headers(JSONResponse({"detail": f"the capture file is not readable: {exc}"},
+                                                 status_code=410))
+        body = operation_curves(cap, fit, breaker)
+    body.update(operation_id=operation_id, kind=op.kind, fit_status=fit.status if fit else None)
+    return security_headers(JSONResponse(body))
+
+
+@router.post("/operations/{operation_id}/diagnosis")
+def request_diagnosis(request: Request, operation_id: Id, user: ReaderPost):
+    """Queue the gap diagnosis (as the API's GET does for any reader); the page polls for it."""
+    with _session(request) as session:
+        crud.get_operation(session, operation_id=operation_id) or _not_found(f"operation {operation_id}")
+        row = crud_web.get_diagnosis(session, operation_id=operation_id)
+        if row is None:
+            try:
+                session.add(DiagnosisRow(operation_id=operation_id, status="queued"))
+                session.commit()
+            except IntegrityError:  # a concurrent request queued it first
+                session.rollback()
+            row = crud_web.get_diagnosis(session, operation_id=operation_id)
+        if row.status in ("queued", "running"):
+            request.app.state.diagnoses.ensure(operation_id)
+    return _back(request, f"/operations/{operation_id}#diagnosis")
+
+
+@router.get("/operations/{operation_id}/capture.zip")
+def download_capture(request: Request, operation_id: Id, user: Reader):
+    from service.storage.spool import capture_files
+
+    with _session(request) as session:
+        op = crud.get_operation(session, operation_id=operation_id) or _not_found(f"operation {operation_id}")
+        files = capture_files(op.capture_path)
+    missing = [p.name for p in files if not p.is_file()]
+    if missing:
+        raise HTTPException(410, f"the capture file is no longer stored ({', '.join(missing)})")
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as zf:
+        for p in files:
+            zf.write(p, arcname=f"operation-{operation_id}{p.suffix.lower()}")
+    resp = Response(buf.getvalue(), media_type="application/zip",
+                    headers={"Content-Disposition": f'attachment; filename="operation-{operation_id}.zip"'})
+    return security_headers(resp)
+
+
+# -- alarms ------------------------------------------------------------------------------------
+@router.get("/alarms")
+def alarms_page(request: Request, user: Reader, state: Annotated[str, Query(pattern="^(active|all)$")] = "active"):
+    with _session(request) as session:
+        rows = crud_web.alarms_with_breakers(session, state=state)
+        return page(request, "alarms.html", {"rows": rows, "state": state, "nav": "alarms"})
+
+
+@router.post("/alarms/{alarm_id}/ack")
+def acknowledge(request: Request, alarm_id: Id, user: OperatorPost,
+                comment: Annotated[str, Form(max_length=500)] = ""):
+    from service.jobs.fit import acknowledge_drift
+
+    settings = request.app.state.settings
+    with _session(request) as session:
+        alarm = crud.get_alarm(session, alarm_id=alarm_id) or _not_found(f"alarm {alarm_id}")
+        if alarm.state == "cleared":
+            raise HTTPException(409, f"alarm {alarm_id} is already cleared")
+        if alarm.state == "raised":
+            crud.acknowledge_alarm(session, alarm=alarm, by=user.name, comment=comment.strip() or None)
+            acknowledge_drift(session, alarm=alarm, by=user.name, settings=settings.drift_settings)
+            session.commit()
+    return _back(request, "/alarms")
+
+
+# -- upload ------------------------------------------------------------------------------------
+@router.get("/upload")
+def upload_form(request: Request, user: Annotated[WebUser, Depends(auth.require_page("operator"))]):
+    with _session(request) as session:
+        return page(request, "upload.html", {"breakers": crud.list_breakers(session), "nav": "upload"})
+
+
+@router.post("/upload")
+async def upload(request: Request, user: OperatorPost,
+                 breaker_id: Annotated[int, Form(ge=1, le=MAX_ID)],
+                 files: Annotated[list[UploadFile], File()],
+                 operation: Annotated[str, Form(pattern="^(auto|open|close)$")] = "auto"):
+    from service.api.routes import _read_capped, capture_from_upload
+
+    settings = request.app.state.settings
+    cap_bytes = settings.max_upload_bytes
+
+    def form_error(message: str, status: int):
+        with _session(request) as session:
+            return page(request, "upload.html", {"breakers": crud.list_breakers(session), "nav": "upload",
+                                                 "error": message, "chosen": breaker_id}, status_code=status)
+
+    try:
+        with _session(request) as session:
+            row = crud.get_breaker(session, breaker_id=breaker_id)
+            if row is None:
+                return form_error(f"there is no breaker {breaker_id}", 422)
+            blobs, budget = {}, cap_bytes
+            for f in files:
+                data = await _read_capped(f, budget)
+                budget -= len(data)
+                blobs[(f.filename or "").lower()] = data
+            capture, kind = await run_in_threadpool(capture_from_upload, blobs, row,
+                                                    None if operation == "auto" else operation, cap_bytes)
+    except HTTPException as exc:
+        return form_error(str(exc.detail), exc.status_code)
+    result = await run_in_threadpool(request.app.state.monitor.ingest, capture, breaker_id=breaker_id,
+                                     operation=kind, source="upload")
+    if result.operation_id is None:
+        return form_error("the database is unavailable: the capture is kept in the spool and will be "
+                          "stored and fitted when it answers again", 202)
+    return security_headers(RedirectResponse(f"/operations/{result.operation_id}", status_code=303))
+
+
+# -- live updates ------------------------------------------------------------------------------
+@router.get("/ui/marker")
+def marker(request: Request, user: Reader):
+    """Changes whenever something a page shows changes; pages poll it and refresh their parts."""
+    with _session(request) as session:
+        m = crud_web.change_marker(session)
+    return security_headers(JSONResponse({"marker": m}))

@@ -1,0 +1,188 @@
+"""Numbers for the page's charts: pure functions, no I/O.
+
+Times on the wire are seconds (Unix epoch for trends, from the first sample for curves); angles
+stay in rad (the page converts for its axes). Display decimation keeps extremes: a vibration
+shock spans a few samples and must never vanish between two plotted points.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections import OrderedDict
+from datetime import datetime
+from threading import Lock
+
+import numpy as np
+
+from service.alarms import drift
+from service.mechanics.coordinates import operation_coordinate
+
+CHARACTERISTICS = (("operating_time_s", "operating time", "ms", 1e3),
+                   ("average_speed_rad_s", "average speed", "rad/s", 1.0),
+                   ("overtravel_rad", "overtravel", "mrad", 1e3),
+                   ("rebound_rad", "rebound", "mrad", 1e3))
+
+
+def epoch(t: datetime) -> float:
+    return round(t.timestamp(), 3)
+
+
+def finite_or_none(v, digits: int | None = None):
+    if v is None:
+        return None
+    v = float(v)
+    if not math.isfinite(v):
+        return None
+    return round(v, digits) if digits is not None else v
+
+
+def minmax_buckets(t: np.ndarray, y: np.ndarray, buckets: int) -> tuple[list, list, list]:
+    """Min/max decimation: ``buckets`` equal slices of the samples, each shown as its (t, min, max).
+
+    t [s], y [any unit]; returns three lists (bucket start time, minimum, maximum). With fewer
+    samples than buckets every sample is its own bucket (min = max)."""
+    t, y = np.asarray(t, float), np.asarray(y, float)
+    n = y.size
+    if n == 0:
+        return [], [], []
+    buckets = max(1, min(int(buckets), n))
+    edges = np.linspace(0, n, buckets + 1).astype(int)
+    lo = np.minimum.reduceat(y, edges[:-1])
+    hi = np.maximum.reduceat(y, edges[:-1])
+    return t[edges[:-1]].tolist(), lo.tolist(), hi.tolist()
+
+
+def minmax_indices(y, buckets: int) -> np.ndarray:
+    """Indices to plot ``y`` with at most ~2 points per bucket: each bucket's minimum and maximum,
+    in order, plus the last sample. NaN/None are skipped. All indices when ``y`` is short."""
+    y = np.asarray([np.nan if v is None else v for v in y], dtype=float)
+    n = y.size
+    if n <= 2 * buckets:
+        return np.arange(n)
+    edges = np.linspace(0, n, buckets + 1).astype(int)
+    keep = []
+    for a, b in zip(edges[:-1], edges[1:]):
+        seg = y[a:b]
+        if seg.size == 0 or np.all(np.isnan(seg)):
+            continue
+        i, j = a + int(np.nanargmin(seg)), a + int(np.nanargmax(seg))
+        keep.extend((i, j) if i <= j else (j, i))
+    keep.append(n - 1)
+    return np.unique(np.asarray(keep, dtype=int))
+
+
+def sparkline(values: list[float], width: float = 120, height: float = 28, pad: float = 2) -> str:
+    """SVG polyline points for a small trend (oldest first)."""
+    v = [float(x) for x in values if x is not None and math.isfinite(float(x))]
+    if len(v) < 2:
+        return ""
+    lo, hi = min(v), max(v)
+    span = (hi - lo) or abs(hi) * 1e-3 or 1.0
+    step = (width - 2 * pad) / (len(v) - 1)
+    return " ".join(f"{pad + i * step:.1f},{pad + (height - 2 * pad) * (1 - (x - lo) / span):.1f}"
+                    for i, x in enumerate(v))
+
+
+class DriftTraces:
+    """The drift statistic after every good fit, replayed with the detector the alarms use.
+
+    The detector stores only its latest state; the trend needs the whole path, so the history is
+    replayed (pure ``drift.update``) and the result kept per breaker and parameter, extended
+    incrementally when new fits arrive.
+    """
+
+    def __init__(self, size: int = 64):
+        self._cache: OrderedDict = OrderedDict()
+        self._size = size
+        self._lock = Lock()
+
+    def trace(self, breaker_id: int, parameter: str, since: datetime | None, ops: list, times: list,
+              values: list, lows: list, highs: list, settings) -> dict:
+        """ops/times/values/lows/highs: the parameter's good fits, oldest first (already filtered
+        to identifiable ones after ``since``). Returns {"t", "s", "baseline", "warning", "alarm"}."""
+        key = (breaker_id, parameter, since, json.dumps(settings.to_dict(), sort_keys=True))
+        with self._lock:
+            hit = self._cache.get(key)
+        start, state, out_t, out_s = 0, drift.DriftState.new(parameter, settings), [], []
+        if hit is not None:
+            n, last_op, h_state, h_t, h_s = hit
+            if n <= len(ops) and n > 0 and ops[n - 1] == last_op:
+                start, state, out_t, out_s = n, h_state, list(h_t), list(h_s)
+        for i in range(start, len(ops)):
+            ci = (lows[i], highs[i]) if lows[i] is not None and highs[i] is not None else None
+            obs = drift.FitObservation(operation_id=ops[i], time=times[i], value=values[i], ci95=ci)
+            try:
+                state, _ = drift.update(state, obs, settings)
+            except ValueError:  # out-of-order fit: the detector skipped it too
+                continue
+            out_t.append(epoch(times[i]))
+            out_s.append(round(state.statistic, 4) if state.phase == "monitoring" else None)
+        if ops:
+            with self._lock:
+                self._cache[key] = (len(ops), ops[-1], state, out_t, out_s)
+                self._cache.move_to_end(key)
+                while len(self._cache) > self._size:
+                    self._cache.popitem(last=False)
+        b = state.baseline
+        return {"t": out_t, "s": out_s, "warning": settings.h_warning, "alarm": settings.h_alarm,
+                "baseline": None if b is None else {"mean": b.mean, "sd": b.sd, "n": b.n},
+                "collected": len(state.collected), "baseline_n": settings.baseline_n}
+
+
+def characteristics_series(rows: list[tuple]) -> dict:
+    """{"open"|"close": {"t": [...], key: [... display unit]}} from (time, kind, characteristics)."""
+    out: dict = {}
+    for t, kind, ch in rows:
+        if not ch:
+            continue
+        col = out.setdefault(kind, {"t": [], **{k: [] for k, *_ in CHARACTERISTICS}})
+        col["t"].append(epoch(t))
+        for k, _, _, scale in CHARACTERISTICS:
+            v = finite_or_none(ch.get(k))
+            col[k].append(None if v is None else round(v * scale, 6))
+    return out
+
+
+def phase_spans(kind: str, fit_t, fit_travel, window: tuple[float, float], onset_delay_s: float | None,
+                breaker) -> list[dict]:
+    """The physical phases of the operation [s from the first sample], from the fitted curve."""
+    from service.diagnosis.phases import phase_bounds
+
+    t = np.asarray(fit_t, float)
+    y = operation_coordinate(np.asarray(fit_travel, float), kind, breaker.stroke)
+    t0 = window[0] + (onset_delay_s or 0.0)
+    inside = (t >= t0) & (t <= window[1])
+    if inside.sum() < 3:
+        return []
+    tm = t[inside] - t0
+    bounds = phase_bounds(kind, tm, y[inside], float(window[1] - t0), breaker)
+    return [{"name": n, "t0": t0 + a, "t1": t0 + b} for n, a, b in bounds if b > a]
+
+
+def operation_curves(capture, fit, breaker, *, vibration_buckets: int = 2000) -> dict:
+    """Everything the operation page plots, at full resolution for the travel.
+
+    capture: ``Capture`` (travel [rad], vibration [g]); fit: the FitRow or None.
+    """
+    t = capture.t
+    travel = capture.travel
+    out = {"t": np.round(t, 7).tolist(), "measured": np.round(travel, 6).tolist(),
+           "fitted": None, "residual": None, "window": None, "noise": None, "phases": [],
+           "vibration": None, "sample_rate": capture.sample_rate, "samples": int(travel.size)}
+    if capture.vibration is not None:
+        vt, vlo, vhi = minmax_buckets(t, capture.vibration, vibration_buckets)
+        out["vibration"] = {"t": [round(v, 7) for v in vt], "min": [round(v, 3) for v in vlo],
+                            "max": [round(v, 3) for v in vhi], "buckets": len(vt)}
+    if fit is not None and fit.status == "done" and fit.curve and fit.window_start_s is not None:
+        ft, fv = np.asarray(fit.curve["t"], float), np.asarray(fit.curve["fitted"], float)
+        w0, w1 = float(fit.window_start_s), float(fit.window_end_s)
+        inside = (t >= max(ft[0], w0)) & (t <= min(ft[-1], w1))
+        fitted = np.where(inside, np.interp(t, ft, fv), np.nan)
+        resid = travel - fitted
+        out["fitted"] = [None if not np.isfinite(v) else round(float(v), 6) for v in fitted]
+        out["residual"] = [None if not np.isfinite(v) else round(float(v), 7) for v in resid]
+        out["window"] = [w0, w1]
+        out["noise"] = fit.noise_rad
+        out["phases"] = phase_spans(fit.kind, ft, fv, (w0, w1), fit.onset_delay_s, breaker)
+    return out
