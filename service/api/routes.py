@@ -304,7 +304,8 @@ async def upload_capture(breaker_id: BreakerId, request: Request, session: Sessi
 
         kind = operation or infer_operation(capture)
     except CaptureError as exc:
-        raise HTTPException(422, str(exc) if name in str(exc) else f"{name}: {exc}") from None
+        named = name.rsplit(".", 1)[0] + "." in str(exc)  # the reader names the .cfg or the .dat
+        raise HTTPException(422, str(exc) if named else f"{name}: {exc}") from None
     except Exception:  # a reader bug must not become a 500 for the client; the reader checks its input
         raise HTTPException(422, f"{name}: the capture could not be read as COMTRADE") from None
     session.close()
