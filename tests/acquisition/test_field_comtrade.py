@@ -125,62 +125,9 @@ def test_inspect_json_matches_an_independent_reading(folder, capsys):
     if pkg is not None:
         median, n_pkg = pkg
         first = r["analog"][0]
-        if n_pkg == r["samples"]:
-            assert first["median"] == pytest.approx(median, rel=1e-9, abs=1e-12)
-        else:  # one record more than declared: the package stops at the declared count
-            assert r["samples"] == n_pkg + 1
-            assert first["min"] <= median <= first["max"]
-            assert abs(first["median"] - median) <= 0.01 * (first["max"] - first["min"])
-
-
-def test_the_files_the_package_cannot_read_are_read(capsys):
-    """The three the issue names (ISO-8859-1, two cp1251) fail in the package with a Unicode error."""
-    for folder, encoding in (("dparrini_iso8859_bin", "iso-8859-1"), ("ru_cp1251_binary_167ch", "cp1251"),
-                             ("ru_terminal_rev2000_83rates", "cp1251")):
-        path = _capture_file(_folder(folder))
-        assert _package_first_median(path) is None
-        code, out, _ = _run(capsys, "inspect", path, "--json")
-        r = json.loads(out)
-        assert code == 0 and r["encoding"] == encoding
-        names = [r["station"], r["device"]] + [a["name"] for a in r["analog"]] + [d["name"] for d in r["digital"]]
-        assert any(ord(c) > 127 for c in "".join(names))
-
-
-def test_quirks_are_reported_as_warnings(capsys):
-    expect = {
-        "ru_terminal_rev2000_83rates": ["blank line", "83 sampling-rate sections", "'2000'"],
-        "sel651r_hif_1999_binary": ["Ctrl-Z", "from the time stamps"],
-        "ge_c60_binary_nrates0": ["from the time stamps"],
-        "sepam_rev1997_binary": ["one record more", "'1997'"],
-        "ru_cp1251_binary_167ch": ["one record more", "start at 0"],
-        "sel311l_1991_ascii": ["2-digit year"],
-        "ritm_binary32_2013": ["start at 0", "1970-01-01"],
-    }
-    for folder, phrases in expect.items():
-        code, out, _ = _run(capsys, "inspect", _capture_file(_folder(folder)), "--json")
-        text = " | ".join(json.loads(out)["warnings"])
-        for phrase in phrases:
-            assert phrase in text, (folder, phrase, text)
-
-
-def test_times_and_encodings_in_the_report(capsys):
-    _, out, _ = _run(capsys, "inspect", _capture_file(_folder("sel311l_1991_ascii")), "--json")
-    r = json.loads(out)
-    assert r["revision"] == "1991" and r["start"].startswith("2011-02-12T11:41:11.081315")
-    _, out, _ = _run(capsys, "inspect", _capture_file(_folder("dparrini_sample_float32_cff")), "--json")
-    r = json.loads(out)
-    assert r["file_type"] == "FLOAT32" and r["start"] == "2021-02-17T17:37:12.422969065+00:00"
-    _, out, _ = _run(capsys, "inspect", _folder("dparrini_sample_ascii") / "sample_ascii.cfg", "--json")
-    assert json.loads(out)["start"].endswith("-05:30")
-
-
-def test_missing_samples_are_nan_and_reported(tmp_path, capsys):
-    d = _folder("dparrini_sample_ascii")
-    (tmp_path / "m.cfg").write_bytes((d / "sample_ascii.cfg").read_bytes())
-    (tmp_path / "m.dat").write_bytes((d / "sample_ascii_missing.dat").read_bytes())
-    code, out, _ = _run(capsys, "inspect", tmp_path / "m.cfg", "--json")
-    r = json.loads(out)
-    assert code == 0 and any("missing sample" in w for w in r["warnings"])
+        # the package stops at the declared count; the reader also keeps one record more
+        assert r["samples"] in (n_pkg, n_pkg + 1)
+        assert first["median"] == pytest.approx(median, rel=1e-9, abs=1e-12)
 
 
 @pytest.mark.parametrize("folder", FOLDERS)
