@@ -317,8 +317,8 @@ def parse_header(text: str, *, name: str) -> Header:
         last = _number(f[1], "the last sample number", name, n)
         if last != int(last) or last < 0:
             raise CaptureError(f"{name}, line {n}: the last sample number '{f[1]}' is not a whole number")
-        if rate < 0:
-            raise CaptureError(f"{name}, line {n}: the sampling rate {f[0]} is negative")
+        if rate < 0 or rate > 1e10 or 0 < rate < 1e-3:
+            raise CaptureError(f"{name}, line {n}: the sampling rate {f[0]} Hz is not a plausible rate")
         rates.append((rate, int(last)))
     if nrates > 0 and any(r == 0 for r, _ in rates):
         warnings.append("a sampling rate of 0 was given; the rate is taken from the time stamps")

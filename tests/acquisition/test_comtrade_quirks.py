@@ -297,3 +297,31 @@ def test_refusals_name_the_file_and_say_what_is_wrong(tmp_path, capsys, case, ph
     with pytest.raises(CaptureError) as err:  # fit, detect and diagnose read through read_capture
         read_capture(path)
     assert phrase in str(err.value)
+
+
+# -- inspect: breaker mapping and CSV ----------------------------------------------------------------
+def test_breaker_file_maps_channels_with_foreign_names(tmp_path, capsys):
+    from tests.conftest import BREAKER_FILE
+
+    text = BREAKER_FILE.read_text(encoding="utf-8").replace('travel = "travel"', 'travel = "Ход"')
+    cam = BREAKER_FILE.with_name(re.search(r'"([^"]+\.cam\.csv)"', text).group(1))
+    (tmp_path / cam.name).write_bytes(cam.read_bytes())
+    (tmp_path / "b.toml").write_text(text, encoding="utf-8")
+    path = write(tmp_path, cfg_text(names=("Ход", "vibration")), "\n".join(ascii_rows(50)), encoding="cp1251")
+    r = inspect(capsys, path, "--breaker", tmp_path / "b.toml")
+    assert r["mapping"] == {"travel": "Ход", "vibration": "vibration"} and r["mapping_source"] == "breaker file"
+    assert inspect(capsys, path)["mapping"] == {"travel": None, "vibration": "vibration"}
+
+
+def test_inspect_a_csv(tmp_path, capsys):
+    t = np.arange(200) / 20_000
+    rows = [f"{a:.8f},{np.sin(a * 100):.6f},{np.cos(a * 100):.6f}," for a in t]
+    (tmp_path / "c.csv").write_bytes(("t_s,travel_rad,vibration_g\r\n" + "\r\n".join(rows) + "\r\n").encode())
+    r = inspect(capsys, tmp_path / "c.csv")
+    assert r["file_type"] == "CSV" and r["samples"] == 200
+    assert r["sample_rate_hz"] == pytest.approx(20_000)
+    assert [(a["name"], a["unit"]) for a in r["analog"]] == [("travel", "rad"), ("vibration", "g")]
+    assert r["analog"][0]["max"] == pytest.approx(np.sin(t * 100).max(), abs=1e-6)
+    assert r["mapping"] == {"travel": "travel", "vibration": "vibration"}
+    (tmp_path / "d.csv").write_text("t_s,travel_rad\n0,0\n0.1,abc\n")
+    assert "d.csv" in (line := refusal(capsys, tmp_path / "d.csv")) and "'abc' is not a number" in line
