@@ -125,6 +125,8 @@ class Header:
     def canonical_text(self, rates: list) -> str:
         """The header in the form the ``comtrade`` package reads, with the given rate sections."""
         rev = self.standard_revision
+        if rev == "1991" and self.file_type != "ASCII":
+            rev = "1999"  # the package takes raw -1 for "missing" in 1991 binary data; it is a value
         lines = [f"{_clean(self.station)},{_clean(self.device)}" + ("" if rev == "1991" else f",{rev}"),
                  f"{len(self.analog) + len(self.digital)},{len(self.analog)}A,{len(self.digital)}D"]
         for i, ch in enumerate(self.analog, 1):

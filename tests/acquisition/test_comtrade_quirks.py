@@ -206,6 +206,14 @@ def test_1991_layout_with_2_digit_years(tmp_path, capsys):
     np.testing.assert_allclose(read_capture(path).travel, raw_signal(n) * A_TRAVEL)
 
 
+def test_1991_binary_keeps_raw_minus_one_as_a_value(tmp_path, capsys):
+    cfg = "\n".join(["SUB,REC", "1,1A,0D", "1,travel,,,rad,0.5,0,0,-32767,32767", "60", "1", "1000,3",
+                     "12/31/98,23:59:59.500000", "12/31/98,23:59:59.500000", "BINARY"]) + "\n"
+    dat = b"".join(struct.pack("<IIh", i + 1, 1000 * i, v) for i, v in enumerate((-1, 0, -1)))
+    rec = read_record(write(tmp_path, cfg, dat))
+    np.testing.assert_array_equal(rec.analog[0], [-0.5, 0.0, -0.5])
+
+
 @pytest.mark.parametrize("cut", [3, 11])  # bytes of a 14-byte record
 def test_truncated_binary_data_is_read_with_a_warning(tmp_path, capsys, cut):
     n = 100
