@@ -22,7 +22,6 @@ TRAVEL_UNITS = {"rad": 1.0, "radian": 1.0, "radians": 1.0, "deg": np.pi / 180, "
 VIBRATION_UNITS = {"g": 1.0, "gn": 1.0, "m/s2": 1 / 9.80665, "m/s^2": 1 / 9.80665, "m/s²": 1 / 9.80665}
 
 MAX_SAMPLES = 50_000_000
-CAPTURE_SUFFIXES = (".cfg", ".cff", ".dat", ".csv", ".txt")
 
 
 def read_capture(path: str | Path, *, travel_channel: str = "travel", vibration_channel: str = "vibration",

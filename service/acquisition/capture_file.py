@@ -2,7 +2,6 @@
 ``drivers.capture_file`` (and ``drivers.comtrade``) so drivers need not import the service."""
 
 from drivers.capture_file import (  # noqa: F401
-    CAPTURE_SUFFIXES,
     MAX_SAMPLES,
     TRAVEL_UNITS,
     VIBRATION_UNITS,
