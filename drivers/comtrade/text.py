@@ -84,7 +84,11 @@ def _looks_like_gb2312(data: bytes) -> bool:
         if 0xB0 <= b <= 0xF7 and 0xA1 <= trail <= 0xFE:
             common += 1
         i += 2
+    high = [b for b in data if b >= 0x80]
     # cp1251 lower-case Cyrillic (0xE0-0xFF) dominates Russian text; as GBK lead bytes these fall
     # in the rare level-2 block or outside GB2312 altogether.
-    lower = sum(1 for b in data if b >= 0xE0) / max(1, sum(1 for b in data if b >= 0x80))
-    return pairs > 0 and common / pairs >= 0.9 and lower < 0.5
+    lower = sum(1 for b in high if b >= 0xE0) / max(1, len(high))
+    # Upper-case Cyrillic abbreviations (ТН, ЗМН) are all bytes >= 0xC0; Chinese text has a byte
+    # below 0xC0 in 3 of 5 characters, so two or more characters without one are not Chinese.
+    all_letters = all(b >= 0xC0 for b in high)
+    return pairs > 0 and common / pairs >= 0.9 and lower < 0.5 and not (all_letters and pairs >= 2)

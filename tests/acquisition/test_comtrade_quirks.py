@@ -92,6 +92,8 @@ def refusal(capsys, path, *extra) -> str:
 @pytest.mark.parametrize("encoding,station,names", [
     ("gbk", "变电站一号", ("行程", "振动")),
     ("cp1251", "Подстанция Южная", ("Ход", "Вибрация")),
+    ("cp1251", "ПС", ("ТН", "ЗМНА")),  # upper-case abbreviations, even lengths: valid GBK bytes too
+    ("gbk", "电站", ("甲相", "乙相")),
     ("iso-8859-1", "Estação Medição", ("Curso", "Vibração")),
     ("utf-8", "Umspannwerk Süd", ("Weg", "Schwingung")),
 ])
