@@ -14,7 +14,7 @@ from drivers.capture import CaptureError
 
 _MARK = re.compile(
     rb"^\s*(?:[-=*#~_<>\[]{2,}\s*(?:file\s*type\s*[:=]?\s*)?|file\s*type\s*[:=]?\s*)"
-    rb"(CFG|HDR|INF|DAT)(?:\s+(ASCII|BINARY32|BINARY|FLOAT32))?\s*(?:[:=,]\s*(\d+)\s*(?:bytes)?)?"
+    rb"(CFG|HDR|INF|DAT)(?:\s*[:=,]?\s*(ASCII|BINARY32|BINARY|FLOAT32))?\s*(?:[:=,]?\s*(\d+)\s*(?:bytes)?)?"
     rb"\s*[-=*#~_<>\]]*\s*$", re.IGNORECASE)
 _STANDARD = re.compile(rb"^--- file type: (CFG|HDR|INF|DAT(?: (?:ASCII|BINARY32|BINARY|FLOAT32)(?:: \d+)?)?) ---$",
                        re.IGNORECASE)

@@ -249,6 +249,8 @@ CFF_MARKERS = [
     ("=== file type: cfg ===", "=== file type: hdr ===", "=== file type: dat {fmt} ==="),
     ("FILE TYPE: CFG", "FILE TYPE: HDR", "FILE TYPE: DAT {fmt}: {size}"),
     ("--- CFG ---", "--- HDR ---", "--- DAT ---"),
+    ("--- file type: CFG ---", "--- file type: HDR ---", "--- file type: DAT: {fmt}: {size} ---"),
+    ("##### file type CFG #####", "##### file type HDR #####", "##### file type DAT {fmt} {size} bytes #####"),
 ]
 
 
