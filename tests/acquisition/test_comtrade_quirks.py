@@ -337,3 +337,56 @@ def test_inspect_a_csv(tmp_path, capsys):
     assert r["mapping"] == {"travel": "travel", "vibration": "vibration"}
     (tmp_path / "d.csv").write_text("t_s,travel_rad\n0,0\n0.1,abc\n")
     assert "d.csv" in (line := refusal(capsys, tmp_path / "d.csv")) and "'abc' is not a number" in line
+
+
+# -- damaged files: a result or a refusal in words, never anything else ------------------------------
+def _damage(rng: np.random.Generator, blob: bytes) -> bytes:
+    b = bytearray(blob)
+    i = int(rng.integers(len(b)))
+    op = int(rng.integers(4))
+    if op == 0:
+        del b[i:]
+    elif op == 1:
+        for j in rng.integers(len(b), size=int(rng.integers(1, 6))):
+            b[j] = int(rng.choice(list(b",\n\r 0123456789.-aZ\x1a\xff\x00")))
+    elif op == 2:
+        del b[i:i + int(rng.integers(1, 40))]
+    else:
+        b[i:i] = rng.integers(256, size=int(rng.integers(1, 20)), dtype=np.uint8).tobytes()
+    return bytes(b)
+
+
+def test_damaged_files_are_read_or_refused_in_words():
+    from drivers.comtrade import read_cff_bytes, read_record_bytes
+
+    n = 40
+    sources = [(cfg_text(station="Подстанция", rates=((1000, n),)).encode("cp1251"), "\n".join(ascii_rows(n)).encode()),
+               (cfg_text(rates=((0, n),), ft="BINARY").encode(), binary_dat(n, stamps=list(range(0, 1000 * n, 1000)))),
+               (cfg_text(names=("行程",), units=("rad",), digital=(), rates=((2000, n),), ft="ASCII").encode("gbk"),
+                "\n".join(ascii_rows(n, n_analog=1, n_digital=0)).encode())]
+    rng = np.random.default_rng(2026)
+    outcomes = {"read": 0, "refused": 0}
+    for k in range(600):
+        cfg, dat = sources[k % len(sources)]
+        as_cff = k % 5 == 0
+        if rng.random() < 0.5:
+            cfg = _damage(rng, cfg)
+        else:
+            dat = _damage(rng, dat)
+        try:
+            if as_cff:
+                rec = read_cff_bytes(b"--- file type: CFG ---\n" + cfg + b"--- file type: DAT ASCII ---\n" + dat,
+                                     name="f.cff")
+            else:
+                rec = read_record_bytes(cfg, dat, name="f.cfg", dat_name="f.dat")
+        except CaptureError as exc:
+            msg = str(exc)
+            assert "f.cfg" in msg or "f.dat" in msg or "f.cff" in msg, msg
+            assert not EXCEPTION_NAME.search(msg), msg
+            outcomes["refused"] += 1
+            continue
+        assert rec.samples >= 1 and rec.time.shape == (rec.samples,)
+        assert all(x.shape == (rec.samples,) for x in rec.analog + rec.digital)
+        assert np.isfinite(rec.sample_rate) and rec.sample_rate > 0
+        outcomes["read"] += 1
+    assert outcomes["read"] > 100 and outcomes["refused"] > 100, outcomes
