@@ -138,11 +138,10 @@ class Header:
         lines.append(f"{self.line_frequency if self.line_frequency is not None else 50}")
         lines.append(str(len(rates)))
         lines += [f"{r!r},{int(n)}" for r, n in rates]
-        stamp = self.start or Stamp(1970, 1, 1, 0, 0, 0, "000000")
-        fallback = Stamp(1970, 1, 1, 0, 0, 0, "0" * len(stamp.fraction or "000000"))
-        for s in (self.start, self.trigger):
-            s = s or fallback
-            lines.append(s.cfg_text(month_first=rev == "1991"))
+        # the package needs some date; the sample times are ours (rates or DAT stamps)
+        fallback = Stamp(1970, 1, 1, 0, 0, 0, "000000")
+        for stamp in (self.start, self.trigger):
+            lines.append((stamp or fallback).cfg_text(month_first=rev == "1991"))
         lines.append(self.file_type)
         if rev != "1991":
             lines.append("1.0")  # time stamps are scaled by us, not by the package
