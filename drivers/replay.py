@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from drivers.capture import Capture, CaptureError
-from service.acquisition.capture_file import read_capture
+from drivers.capture_file import read_capture
 
 from .interface import DriverStats, SampleBlock
 

@@ -15,6 +15,7 @@ COMMANDS = {
     "fit": ("service.estimation.commands", "fit the dynamic model to one captured operation"),
     "study": ("service.studies.commands", "reproduce a study (identifiability, sensitivity, ...)"),
     "detect": ("service.acquisition.commands", "find operations in a recorded stream"),
+    "inspect": ("service.acquisition.inspection", "report what a capture file holds (COMTRADE or CSV)"),
     "capture": ("service.acquisition.commands", "capture operations from a DAQ driver to COMTRADE"),
     "emulate": ("drivers.commands", "run a serial or Modbus DAQ emulator"),
     "serve": ("service.api.commands", "run the monitoring service"),

@@ -269,35 +269,33 @@ def capture_from_upload(blobs: dict[str, bytes], row, operation: str | None, cap
     names = list(blobs)
     if len(names) == 1 and names[0].endswith(".zip"):
         cfg, dat, name = _pair_from_zip(blobs[names[0]], cap_bytes)
+    elif len(names) == 1 and names[0].endswith(".cff"):
+        cfg, dat, name = blobs[names[0]], None, names[0]
     else:
         cfg_names = [n for n in names if n.endswith(".cfg")]
         dat_names = [n for n in names if n.endswith(".dat")]
         if len(cfg_names) != 1 or len(dat_names) != 1 or len(names) != 2:
-            raise HTTPException(422, "send a COMTRADE .cfg and its .dat (two files), or one .zip holding them")
+            raise HTTPException(422, "send a COMTRADE .cfg and its .dat (two files), one .cff, "
+                                     "or one .zip holding a .cfg and its .dat")
         cfg, dat, name = blobs[cfg_names[0]], blobs[dat_names[0]], cfg_names[0]
-    try:
-        cfg_text = cfg.decode("utf-8")
-    except UnicodeDecodeError:
-        try:
-            cfg_text = cfg.decode("latin-1")
-        except UnicodeDecodeError:
-            raise HTTPException(422, "the .cfg file is not text") from None
     breaker = crud.breaker_model(row)
     try:
-        capture = load_comtrade_bytes(cfg_text, dat, source=f"upload:{name}",
+        # the same reader as hvcb fit/detect/inspect: the same message for the same file
+        capture = load_comtrade_bytes(cfg, dat, source=f"upload:{name}",
                                       travel_channel=breaker.channels.get("travel", "travel"),
                                       vibration_channel=breaker.channels.get("vibration", "vibration"))
         if capture.travel.size < 16:
-            raise CaptureError("the record holds fewer than 16 samples")
+            raise CaptureError(f"{name}: the record holds fewer than 16 samples")
         from service.jobs.ingest import infer_operation
 
         kind = operation or infer_operation(capture)
     except CaptureError as exc:
-        raise HTTPException(422, str(exc)) from None
+        named = name.rsplit(".", 1)[0] + "." in str(exc)  # the reader names the .cfg or the .dat
+        raise HTTPException(422, str(exc) if named else f"{name}: {exc}") from None
     except HTTPException:
         raise
-    except Exception as exc:  # the COMTRADE reader raises many types on malformed input
-        raise HTTPException(422, f"malformed COMTRADE upload: {type(exc).__name__}: {exc}") from None
+    except Exception:  # a reader bug must not become a 500 for the client; the reader checks its input
+        raise HTTPException(422, f"{name}: the capture could not be read as COMTRADE") from None
     return capture, kind
 
 
@@ -306,7 +304,7 @@ def capture_from_upload(blobs: dict[str, bytes], row, operation: str | None, cap
              tags=["operations"])
 async def upload_capture(breaker_id: BreakerId, request: Request, session: SessionDep, settings: SettingsDep,
                          monitor: MonitorDep, _: OperatorDep,
-                         files: Annotated[list[UploadFile], File(description="a .cfg and its .dat, or one .zip")],
+                         files: Annotated[list[UploadFile], File(description="a .cfg and its .dat, one .cff, or one .zip")],
                          operation: Annotated[Literal["open", "close"] | None,
                                               Form(description="inferred from the travel when omitted")] = None):
     cap_bytes = settings.max_upload_bytes

@@ -1,0 +1,213 @@
+"""Capture files to ``Capture``: COMTRADE (``.cfg``+``.dat`` or ``.cff``, through the tolerant
+reader in ``drivers.comtrade``) and CSV ``t_s,travel_rad[,vibration_g]``.
+
+Outside names and units become ours here: the travel channel in rad, the vibration in g. What
+the reader had to repair travels along in ``Capture.meta["warnings"]``.
+"""
+
+from __future__ import annotations
+
+import io
+from datetime import datetime, timedelta, timezone
+from pathlib import Path
+
+import numpy as np
+
+from drivers.capture import Capture, CaptureError
+from drivers.comtrade import Record, decode_text, read_cff_bytes, read_record, read_record_bytes
+
+# Unit spellings accepted per quantity, with the factor to our unit.
+TRAVEL_UNITS = {"rad": 1.0, "radian": 1.0, "radians": 1.0, "deg": np.pi / 180, "degree": np.pi / 180,
+                "degrees": np.pi / 180, "°": np.pi / 180, "mrad": 1e-3}
+VIBRATION_UNITS = {"g": 1.0, "gn": 1.0, "m/s2": 1 / 9.80665, "m/s^2": 1 / 9.80665, "m/s²": 1 / 9.80665}
+
+MAX_SAMPLES = 50_000_000
+
+
+def read_capture(path: str | Path, *, travel_channel: str = "travel", vibration_channel: str = "vibration",
+                 encoding: str | None = None) -> Capture:
+    """Read a COMTRADE ``.cfg`` (with its ``.dat``), a ``.dat``, a ``.cff``, or a CSV
+    ``t_s,travel_rad[,vibration_g]``.
+
+    Raises
+    ------
+    CaptureError
+        Missing or malformed files, unknown channels, wrong units or NaN samples; the message
+        names the file and says what is wrong.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise CaptureError(f"capture file not found: {path}")
+    if path.is_dir():
+        raise CaptureError(f"{path} is a folder; give the capture's .cfg, .cff or .csv file")
+    suffix = path.suffix.lower()
+    if suffix in (".cfg", ".cff", ".dat"):
+        return read_comtrade(path, travel_channel=travel_channel, vibration_channel=vibration_channel,
+                             encoding=encoding)
+    if suffix in (".csv", ".txt"):
+        return read_csv(path, encoding=encoding)
+    raise CaptureError(f"{path}: unknown capture format '{path.suffix}'; give a COMTRADE .cfg/.cff or a .csv")
+
+
+def read_comtrade(cfg_path: str | Path, *, travel_channel: str = "travel", vibration_channel: str = "vibration",
+                  encoding: str | None = None) -> Capture:
+    """Read a COMTRADE record and map its channels to ours."""
+    record = read_record(cfg_path, encoding=encoding)
+    return record_to_capture(record, source=str(cfg_path), travel_channel=travel_channel,
+                             vibration_channel=vibration_channel)
+
+
+def load_comtrade_bytes(cfg: bytes | str, dat: bytes | None = None, *, source: str = "upload",
+                        travel_channel: str = "travel", vibration_channel: str = "vibration",
+                        encoding: str | None = None) -> Capture:
+    """Read a COMTRADE pair (or a CFF when ``dat`` is None) held in memory (uploads)."""
+    if isinstance(cfg, str):
+        cfg = cfg.encode("utf-8")
+    name = source.removeprefix("upload:")
+    if dat is None:
+        record = read_cff_bytes(cfg, name=name, encoding=encoding)
+    else:
+        stem = name.rsplit(".", 1)[0]
+        record = read_record_bytes(cfg, dat, name=name, dat_name=f"{stem}.dat", encoding=encoding)
+    return record_to_capture(record, source=source, travel_channel=travel_channel,
+                             vibration_channel=vibration_channel)
+
+
+def record_start_time(record: Record) -> datetime | None:
+    """Time of the first sample; UTC unless the record gives its offset."""
+    s = record.header.start
+    if s is None:
+        return None
+    offset = record.header.utc_offset_minutes
+    tz = timezone.utc if offset is None else timezone(timedelta(minutes=offset))
+    micro = int((s.fraction or "0")[:6].ljust(6, "0"))
+    return datetime(s.year, s.month, s.day, s.hour, s.minute, s.second, micro, tzinfo=tz)
+
+
+def record_to_capture(record: Record, *, source: str, travel_channel: str = "travel",
+                      vibration_channel: str = "vibration") -> Capture:
+    names = [ch.name.strip() for ch in record.header.analog]
+    idx_t = _channel_index(names, travel_channel, source)
+    idx_v = _find(names, vibration_channel)
+    notes = list(record.warnings)
+    if not record.uniform:
+        notes.append(f"the samples were resampled to a uniform {record.sample_rate:.6g} Hz")
+    if record.samples > MAX_SAMPLES:
+        raise CaptureError(f"{source}: {record.samples} samples is more than the {MAX_SAMPLES} a capture may hold")
+    ch_t = record.header.analog[idx_t]
+    travel = record.uniform_channel(idx_t) * _unit_factor(ch_t.unit, TRAVEL_UNITS, "travel", source)
+    vibration = vib_limits = None
+    if idx_v is not None:
+        ch_v = record.header.analog[idx_v]
+        vibration = record.uniform_channel(idx_v) * _unit_factor(ch_v.unit, VIBRATION_UNITS, "vibration", source)
+        vib_limits = _channel_limits(ch_v, VIBRATION_UNITS)
+    cap = Capture(travel=travel, sample_rate=float(record.sample_rate), vibration=vibration,
+                  start_time=record_start_time(record), source=source,
+                  travel_limits=_channel_limits(ch_t, TRAVEL_UNITS), vibration_limits=vib_limits,
+                  meta={"warnings": notes, "encoding": record.encoding})
+    check_finite(cap)
+    return cap
+
+
+def _channel_limits(ch, table) -> tuple | None:
+    f = table.get(ch.unit.strip().lower(), 1.0)
+    lo, hi = sorted(((ch.a * ch.cmin + ch.b) * f, (ch.a * ch.cmax + ch.b) * f))
+    return (float(lo), float(hi)) if hi > lo and np.isfinite([lo, hi]).all() else None
+
+
+def _find(names, wanted: str) -> int | None:
+    for i, name in enumerate(names):
+        if name.lower() == wanted.strip().lower():
+            return i
+    return None
+
+
+def _channel_index(names, wanted: str, source: str) -> int:
+    i = _find(names, wanted)
+    if i is None:
+        shown = ", ".join(names[:40]) + (f" and {len(names) - 40} more" if len(names) > 40 else "")
+        raise CaptureError(f"{source}: no channel named '{wanted}' (channels: {shown or 'none'}); "
+                           f"set the channel name in the breaker file's [channels]")
+    return i
+
+
+def _unit_factor(unit: str, table: dict, quantity: str, source: str) -> float:
+    key = unit.strip().lower()
+    if key == "" and quantity == "travel":
+        raise CaptureError(f"{source}: the {quantity} channel has no unit; expected one of {', '.join(table)}")
+    if key == "":
+        return 1.0
+    if key not in table:
+        raise CaptureError(f"{source}: the {quantity} channel is in '{unit}', expected one of {', '.join(table)}")
+    return table[key]
+
+
+def read_csv_text(path: str | Path, *, encoding: str | None = None) -> tuple[str, str]:
+    """``(text, encoding)`` of a CSV capture."""
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise CaptureError(f"cannot read {path} ({exc.strerror or 'input/output error'})") from None
+    return decode_text(data, name=str(path), encoding=encoding)
+
+
+def read_csv(path: str | Path, *, encoding: str | None = None) -> Capture:
+    """Read a CSV with a header ``t_s,travel_rad[,vibration_g]`` and uniform sampling."""
+    text, _ = read_csv_text(path, encoding=encoding)
+    return parse_csv(text, source=str(path))
+
+
+def parse_csv(text: str, *, source: str = "csv") -> Capture:
+    text = text.replace("\x1a", "")
+    lines = [ln for ln in text.splitlines() if ln.strip()]
+    if not lines:
+        raise CaptureError(f"{source}: empty file")
+    header = [h.strip().lower() for h in lines[0].rstrip(", \t").split(",")]
+    if header[:2] != ["t_s", "travel_rad"]:
+        if len(header) >= 2 and header[0] == "t_s" and header[1].startswith("travel_"):
+            raise CaptureError(f"{source}: travel column is '{header[1]}', expected travel_rad (radians)")
+        raise CaptureError(f"{source}: expected a header 't_s,travel_rad[,vibration_g]', got '{lines[0][:80]}'")
+    if len(header) > 2 and header[2] not in ("vibration_g",):
+        raise CaptureError(f"{source}: third column is '{header[2]}', expected vibration_g")
+    body = "\n".join(ln.strip().rstrip(",") for ln in lines[1:])
+    try:
+        data = np.loadtxt(io.StringIO(body), delimiter=",", ndmin=2)
+    except ValueError:
+        raise CaptureError(f"{source}: {_first_bad_row(lines, len(header))}") from None
+    if data.shape[0] < 2:
+        raise CaptureError(f"{source}: fewer than 2 samples")
+    if data.shape[1] != len(header):
+        raise CaptureError(f"{source}: the rows hold {data.shape[1]} values, the header names {len(header)}")
+    t = data[:, 0]
+    dt = np.diff(t)
+    if not np.all(np.isfinite(t)) or np.any(dt <= 0):
+        raise CaptureError(f"{source}: the time column must be finite and strictly increasing")
+    period = float(np.median(dt))
+    if np.max(np.abs(dt - period)) > 0.01 * period + 1e-9:
+        raise CaptureError(f"{source}: the samples are not uniformly spaced in time")
+    cap = Capture(travel=data[:, 1].astype(float), sample_rate=1.0 / period,
+                  vibration=data[:, 2].astype(float) if data.shape[1] > 2 else None, source=source)
+    check_finite(cap)
+    return cap
+
+
+def _first_bad_row(lines: list, width: int) -> str:
+    for i, line in enumerate(lines[1:], 2):
+        parts = [p.strip() for p in line.strip().rstrip(",").split(",")]
+        if len(parts) != width:
+            return f"row {i} has {len(parts)} values, the header names {width}"
+        for p in parts:
+            try:
+                float(p)
+            except ValueError:
+                return f"row {i}: '{p[:20]}' is not a number"
+    return "not numeric CSV"
+
+
+def check_finite(cap: Capture) -> None:
+    if not np.all(np.isfinite(cap.travel)):
+        n = int(np.sum(~np.isfinite(cap.travel)))
+        raise CaptureError(f"{cap.source}: the travel channel has {n} NaN or infinite samples")
+    if cap.vibration is not None and not np.all(np.isfinite(cap.vibration)):
+        raise CaptureError(f"{cap.source}: the vibration channel has NaN or infinite samples")

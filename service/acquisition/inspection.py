@@ -1,0 +1,213 @@
+"""``hvcb inspect``: what is in a capture file (the ffprobe of a capture).
+
+Reads a COMTRADE record (``.cfg``+``.dat``, ``.cff``) or a CSV with the same reader that serves
+``fit``, ``detect`` and uploads, and reports its header, channels (min/median/max in engineering
+units) and everything the reader had to repair or guess. No breaker file is needed; with one
+the report names the channels it would use for travel and vibration.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from drivers.capture import CaptureError
+
+MAX_LISTED = 40  # channel names printed in the table before "... and N more"
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser("inspect", help="report what a capture file holds (COMTRADE .cfg/.cff or CSV)")
+    p.add_argument("capture", help="COMTRADE .cfg (with its .dat), .dat, .cff, or .csv")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--breaker", default=None, help="breaker file: adds the travel/vibration channel mapping")
+    p.add_argument("--encoding", default=None,
+                   help="text encoding of the names (default: UTF-8, else detected: cp1251, GBK, ISO-8859-1)")
+    p.set_defaults(func=run_inspect)
+
+
+def run_inspect(args) -> int:
+    channels = None
+    if args.breaker:
+        from service.breaker_file import load_breaker
+
+        channels = load_breaker(args.breaker).channels
+    report = inspect_capture(args.capture, channels=channels, encoding=args.encoding)
+    if args.json:
+        print(json.dumps(report, ensure_ascii=False, allow_nan=False))
+    else:
+        print(format_report(report))
+    return 0
+
+
+def inspect_capture(path: str | Path, *, channels: dict | None = None, encoding: str | None = None) -> dict:
+    """The report of one capture file as a JSON-able dict.
+
+    ``channels`` is a breaker file's ``[channels]`` (``{"travel": name, "vibration": name}``);
+    without it the default names ``travel`` and ``vibration`` are looked up.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise CaptureError(f"capture file not found: {path}")
+    if path.is_dir():
+        raise CaptureError(f"{path} is a folder; give the capture's .cfg, .cff or .csv file")
+    suffix = path.suffix.lower()
+    if suffix in (".csv", ".txt"):
+        report = _inspect_csv(path, encoding)
+    elif suffix in (".cfg", ".cff", ".dat"):
+        report = _inspect_comtrade(path, encoding)
+    else:
+        raise CaptureError(f"{path}: unknown capture format '{path.suffix}'; give a COMTRADE .cfg/.cff or a .csv")
+    wanted = {"travel": "travel", "vibration": "vibration", **(channels or {})}
+    names = {a["name"].strip().lower(): a["name"] for a in reversed(report["analog"])}
+    report["mapping"] = {k: names.get(str(wanted[k]).strip().lower()) for k in ("travel", "vibration")}
+    report["mapping_source"] = "breaker file" if channels else "default channel names"
+    return report
+
+
+def _stats(x: np.ndarray) -> dict:
+    x = np.asarray(x, float)
+    ok = x[np.isfinite(x)]
+    if ok.size == 0:
+        return {"min": None, "median": None, "max": None}
+    return {"min": float(ok.min()), "median": float(np.median(ok)), "max": float(ok.max())}
+
+
+def _inspect_comtrade(path: Path, encoding: str | None) -> dict:
+    from drivers.comtrade import read_record
+
+    rec = read_record(path, encoding=encoding)
+    h = rec.header
+    offset = h.utc_offset_minutes
+    revision = h.revision or "1991"
+    return {
+        "file": str(path),
+        "container": rec.container,
+        "revision": revision,
+        "read_as_revision": h.standard_revision,
+        "file_type": h.file_type,
+        "encoding": rec.encoding,
+        "hdr_encoding": rec.hdr_encoding,
+        "inf_encoding": rec.inf_encoding,
+        "station": h.station,
+        "device": h.device,
+        "line_frequency_hz": h.line_frequency,
+        "sample_rate_hz": float(rec.sample_rate),
+        "rate_source": rec.rate_source,
+        "rate_sections": [{"rate_hz": float(r), "last_sample": int(n)} for r, n in h.rates] if h.nrates else [],
+        "samples": rec.samples,
+        "declared_samples": h.declared_samples,
+        "duration_s": rec.samples / float(rec.sample_rate),
+        "start": h.start.iso(offset) if h.start else None,
+        "trigger": h.trigger.iso(offset) if h.trigger else None,
+        "analog": [{"name": ch.name, "unit": ch.unit, **_stats(x)} for ch, x in zip(h.analog, rec.analog)],
+        "digital": [{"name": ch.name} for ch in h.digital],
+        "warnings": list(rec.warnings),
+    }
+
+
+def _inspect_csv(path: Path, encoding: str | None) -> dict:
+    from drivers.capture_file import read_csv_text
+
+    text, enc = read_csv_text(path, encoding=encoding)
+    warnings = []
+    if "\x1a" in text:
+        text = text.replace("\x1a", "")
+        warnings.append("Ctrl-Z padding was ignored")
+    lines = [ln.strip().rstrip(",") for ln in text.splitlines()]
+    blank = sum(1 for ln in lines if not ln)
+    lines = [ln for ln in lines if ln]
+    if blank:
+        warnings.append(f"{blank} blank line(s) were skipped")
+    if not lines:
+        raise CaptureError(f"{path}: empty file")
+    header = [h.strip() for h in lines[0].split(",")]
+    try:
+        data = np.loadtxt(io.StringIO("\n".join(lines[1:])), delimiter=",", ndmin=2)
+    except ValueError:
+        from drivers.capture_file import _first_bad_row
+
+        raise CaptureError(f"{path}: {_first_bad_row(lines, len(header))}") from None
+    if data.shape[0] == 0:
+        raise CaptureError(f"{path}: the file holds a header but no samples")
+    if data.shape[1] != len(header):
+        raise CaptureError(f"{path}: the rows hold {data.shape[1]} values, the header names {len(header)}")
+    rate = None
+    t = data[:, 0]
+    if header[0].lower() in ("t_s", "t", "time", "time_s") and data.shape[0] >= 2:
+        dt = np.diff(t)
+        if np.all(np.isfinite(t)) and np.all(dt > 0):
+            period = (t[-1] - t[0]) / (t.size - 1)
+            rate = 1.0 / period
+            if np.max(np.abs(dt - period)) > 0.01 * period:
+                warnings.append("the time column is not equally spaced")
+        else:
+            warnings.append("the time column does not increase")
+    else:
+        warnings.append(f"the first column '{header[0]}' is not a time column (t_s); no sampling rate")
+
+    def split(name):
+        base, _, unit = name.rpartition("_")
+        return (base, unit) if base else (name, "")
+
+    analog = [{"name": split(n)[0], "unit": split(n)[1], **_stats(data[:, k + 1])}
+              for k, n in enumerate(header[1:])]
+    return {
+        "file": str(path), "container": "CSV", "revision": None, "read_as_revision": None, "file_type": "CSV",
+        "encoding": enc, "hdr_encoding": None, "inf_encoding": None, "station": None, "device": None,
+        "line_frequency_hz": None, "sample_rate_hz": rate, "rate_source": "time column" if rate else None,
+        "rate_sections": [], "samples": int(data.shape[0]), "declared_samples": None,
+        "duration_s": data.shape[0] / rate if rate else None, "start": None, "trigger": None,
+        "analog": analog, "digital": [], "warnings": warnings,
+    }
+
+
+def _num(x) -> str:
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "-"
+    return f"{x:.6g}"
+
+
+def format_report(r: dict) -> str:
+    """The report as a short table for the terminal."""
+    rev = r["revision"]
+    fmt = r["file_type"] if rev is None else (
+        f"COMTRADE {rev}" + (f" (read as {r['read_as_revision']})" if r["read_as_revision"] != rev else "")
+        + f", {r['file_type']}, {r['container']}")
+    enc = r["encoding"] + "".join(f", {k} {r[k + '_encoding']}" for k in ("hdr", "inf") if r.get(k + "_encoding"))
+    rate = "unknown rate" if r["sample_rate_hz"] is None else f"{_num(r['sample_rate_hz'])} Hz"
+    if r.get("rate_source") == "time stamps":
+        rate += " (from the time stamps)"
+    if len(r.get("rate_sections") or []) > 1:
+        rate += f" (mean of {len(r['rate_sections'])} rate sections)"
+    out = [f"file      {r['file']}", f"format    {fmt}; text {enc}"]
+    if r.get("station") or r.get("device"):
+        out.append(f"recorder  {r['station']} / {r['device']}")
+    out.append(f"samples   {r['samples']} at {rate}"
+               + (f", {_num(r['duration_s'])} s" if r["duration_s"] is not None else ""))
+    if r["start"] or r["trigger"]:
+        out.append(f"start     {r['start'] or '-'}   trigger {r['trigger'] or '-'}")
+    rows = [(a["name"], a["unit"], _num(a["min"]), _num(a["median"]), _num(a["max"])) for a in r["analog"]]
+    head = ("name", "unit", "min", "median", "max")
+    widths = [max(len(str(x[i])) for x in rows + [head]) for i in range(5)]
+    out.append(f"analog    {len(rows)}")
+    for row in [head] + rows[:MAX_LISTED]:
+        out.append("  " + "  ".join(str(v).ljust(w) if i < 2 else str(v).rjust(w)
+                                    for i, (v, w) in enumerate(zip(row, widths))).rstrip())
+    if len(rows) > MAX_LISTED:
+        out.append(f"  ... and {len(rows) - MAX_LISTED} more")
+    digital = [d["name"] for d in r["digital"]]
+    if digital:
+        more = f" ... and {len(digital) - MAX_LISTED} more" if len(digital) > MAX_LISTED else ""
+        out.append(f"digital   {len(digital)}: " + ", ".join(digital[:MAX_LISTED]) + more)
+    m = r["mapping"]
+    out.append(f"mapping   travel: {m['travel'] or 'none'}, vibration: {m['vibration'] or 'none'} "
+               f"({r['mapping_source']})")
+    if r["warnings"]:
+        out.append("warnings")
+        out += [f"  - {w}" for w in r["warnings"]]
+    return "\n".join(out)
