@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import pytest
 
-from weblive import CHROMIUM_ARGS, chromium_path
+from .weblive import CHROMIUM_ARGS, chromium_path
 
 
 @pytest.fixture(scope="module")

@@ -9,7 +9,7 @@ import httpx
 import pytest
 from sqlalchemy import select
 
-from weblive import (T0, PageLog, canvas_ink, csrf_of, history, screenshot, sign_in, start_server,
+from .weblive import (T0, PageLog, canvas_ink, csrf_of, history, screenshot, sign_in, start_server,
                       synth)
 
 VIEWPORT = {"width": 1400, "height": 900}
@@ -21,7 +21,7 @@ def live(tmp_path_factory, breaker, browser):
     try:
         for kind, cap in history(breaker):
             app.ingest(cap, kind)
-        from weblive import BREAKER_FILE
+        from .weblive import BREAKER_FILE
 
         from service.storage import crud
 
