@@ -140,8 +140,8 @@ def cmd_demo(args) -> int:
     breaker = load_breaker(base.breakers[0])
     daq = DemoDaq(breaker, DemoScript(interval_s=args.interval))
     port = daq.start()
-    acquisition = {"driver": "modbus", "breaker": breaker.name,
-                   "modbus": {"transport": "tcp", "host": "127.0.0.1", "port": port, "poll_interval_s": 0.2}}
+    acquisition = [{"driver": "modbus", "breaker": breaker.name,
+                    "modbus": {"transport": "tcp", "host": "127.0.0.1", "port": port, "poll_interval_s": 0.2}}]
     try:
         settings = _settings(args, host=args.host, port=args.port, data_dir=demo_dir, database_url="",
                              broker_url="", executor="local", acquisition=acquisition)
