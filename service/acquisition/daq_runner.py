@@ -89,8 +89,9 @@ class DaqState:
 
     @property
     def down(self) -> bool:
-        """Failing or disconnected (a finished replay is not down)."""
-        return self.state == "retrying" or (self.state == "running" and not self.connected)
+        """Failing or disconnected (a replay has no link: it is down only while failing)."""
+        return self.state == "retrying" or (self.state == "running" and not self.connected
+                                            and self.driver != "replay")
 
     def to_dict(self) -> dict:
         d = asdict(self)

@@ -30,7 +30,8 @@ def register(sub) -> None:
 
     p = sub.add_parser("key", help="create an API key (prints it once)")
     p.add_argument("name")
-    p.add_argument("--role", choices=("reader", "operator", "admin"), default="reader")
+    p.add_argument("--role", choices=("agent", "reader", "operator", "admin"), default="reader",
+                   help="agent: an edge agent's key, which may only upload captures")
     p.add_argument("--config", default=None)
     p.set_defaults(func=cmd_key)
 

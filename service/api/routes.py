@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Annotated, Literal
 
 import numpy as np
-from fastapi import APIRouter, File, Form, HTTPException, Path as PathParam, Query, Request, UploadFile
+from fastapi import APIRouter, File, Form, Header, HTTPException, Path as PathParam, Query, Request, UploadFile
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import Response
 from sqlalchemy.exc import IntegrityError
@@ -22,7 +22,7 @@ from service.storage import crud
 from service.storage.models import utcnow
 
 from . import schemas as s
-from .deps import AdminDep, MonitorDep, OperatorDep, ReaderDep, SessionDep, SettingsDep
+from .deps import AdminDep, MonitorDep, OperatorDep, ReaderDep, SessionDep, SettingsDep, UploaderDep
 
 router = APIRouter(prefix="/api/v1")
 
@@ -260,14 +260,43 @@ def _pair_from_zip(blob: bytes, cap: int) -> tuple[bytes, bytes, str]:
         raise HTTPException(422, f"cannot extract the archive: {exc}") from None
 
 
+def _duplicate(session, breaker_id: int, key: str, response: Response) -> s.UploadAccepted | None:
+    """The operation already stored under this idempotency key, or None."""
+    op = crud.get_operation_by_key(session, capture_key=key)
+    if op is None:
+        return None
+    if op.breaker_id != breaker_id:
+        raise HTTPException(409, f"this capture (Idempotency-Key {key[:12]}...) is stored under breaker "
+                                 f"{op.breaker_id}, not {breaker_id}")
+    response.status_code = 200
+    return s.UploadAccepted(operation_id=op.id, capture_key=key, operation=op.kind, status="duplicate")
+
+
+def content_hash(cfg: bytes, dat: bytes) -> str:
+    """The capture's content hash: SHA-256 over the hex SHA-256 of the .cfg then the .dat
+    (``service.storage.spool.capture_digest`` of the two files)."""
+    import hashlib
+
+    return hashlib.sha256(hashlib.sha256(cfg).hexdigest().encode() + hashlib.sha256(dat).hexdigest().encode()
+                          ).hexdigest()
+
+
 @router.post("/breakers/{breaker_id}/captures", response_model=s.UploadAccepted, status_code=202,
-             responses={**AUTH, **NOT_FOUND, 413: {"model": s.Message}, 422: {"model": s.Message}},
+             responses={**AUTH, **NOT_FOUND, 200: {"model": s.UploadAccepted,
+                                                   "description": "stored before under this Idempotency-Key"},
+                        409: {"model": s.Message}, 413: {"model": s.Message}, 422: {"model": s.Message}},
              tags=["operations"])
-async def upload_capture(breaker_id: BreakerId, request: Request, session: SessionDep, settings: SettingsDep,
-                         monitor: MonitorDep, _: OperatorDep,
+async def upload_capture(breaker_id: BreakerId, request: Request, response: Response, session: SessionDep,
+                         settings: SettingsDep, monitor: MonitorDep, who: UploaderDep,
                          files: Annotated[list[UploadFile], File(description="a .cfg and its .dat, or one .zip")],
                          operation: Annotated[Literal["open", "close"] | None,
-                                              Form(description="inferred from the travel when omitted")] = None):
+                                              Form(description="inferred from the travel when omitted")] = None,
+                         idempotency_key: Annotated[str | None, Header(
+                             alias="Idempotency-Key", pattern=r"^[0-9a-f]{64}$",
+                             description="the capture's content hash (SHA-256 of the hex SHA-256 of the .cfg "
+                                         "then the .dat): a retry answers with the stored operation")] = None):
+    """Upload one capture (operator, admin or agent key). With ``Idempotency-Key`` a capture is
+    stored once however often it is sent: a repeat answers 200 with the existing operation."""
     from service.acquisition.capture_file import load_comtrade_bytes
 
     cap_bytes = settings.max_upload_bytes
@@ -275,6 +304,10 @@ async def upload_capture(breaker_id: BreakerId, request: Request, session: Sessi
     if declared and declared.isdigit() and int(declared) > cap_bytes + 64 * 1024:
         raise HTTPException(413, f"upload larger than the {cap_bytes} byte limit")
     row = _breaker_or_404(session, breaker_id)
+    if idempotency_key is not None:
+        dup = _duplicate(session, breaker_id, idempotency_key, response)
+        if dup is not None:
+            return dup
     blobs, budget = {}, cap_bytes
     for f in files:
         data = await _read_capped(f, budget)
@@ -289,6 +322,9 @@ async def upload_capture(breaker_id: BreakerId, request: Request, session: Sessi
         if len(cfg_names) != 1 or len(dat_names) != 1 or len(names) != 2:
             raise HTTPException(422, "send a COMTRADE .cfg and its .dat (two files), or one .zip holding them")
         cfg, dat, name = blobs[cfg_names[0]], blobs[dat_names[0]], cfg_names[0]
+    if idempotency_key is not None and content_hash(cfg, dat) != idempotency_key:
+        raise HTTPException(422, "the Idempotency-Key is not the content hash of the uploaded .cfg and .dat "
+                                 "(damaged in transit, or the wrong key)")
     try:
         cfg_text = cfg.decode("utf-8")
     except UnicodeDecodeError:
@@ -313,7 +349,14 @@ async def upload_capture(breaker_id: BreakerId, request: Request, session: Sessi
     except Exception as exc:  # the COMTRADE reader raises many types on malformed input
         raise HTTPException(422, f"malformed COMTRADE upload: {type(exc).__name__}: {exc}") from None
     session.close()
-    result = monitor.ingest(capture, breaker_id=breaker_id, operation=kind, source="upload")
+    source = "agent" if who.role == "agent" else "upload"
+    result = await run_in_threadpool(monitor.ingest, capture, breaker_id=breaker_id, operation=kind, source=source,
+                                     capture_key=idempotency_key)
+    if result.duplicate:  # stored by a concurrent retry of the same capture
+        with request.app.state.Session() as again:
+            dup = _duplicate(again, breaker_id, result.capture_key, response)
+        if dup is not None:
+            return dup
     return s.UploadAccepted(operation_id=result.operation_id, capture_key=result.capture_key, operation=kind,
                             status="spooled" if result.spooled else "queued")
 

@@ -29,6 +29,7 @@ class IngestResult:
     capture_key: str
     operation_id: int | None  # None: spooled, the database was unavailable
     spooled: bool
+    duplicate: bool = False  # an operation with this capture key existed already
 
 
 def infer_operation(capture: Capture) -> str:
@@ -87,16 +88,19 @@ class Monitor:
 
     # -- ingest --------------------------------------------------------------------------------
     def ingest(self, capture: Capture, *, breaker_id: int, operation: str | None = None,
-               source: str = "daq", capture_path: str | Path | None = None) -> IngestResult:
+               source: str = "daq", capture_path: str | Path | None = None,
+               capture_key: str | None = None) -> IngestResult:
         """Make ``capture`` durable, store its operation and queue its fit.
 
         ``capture_path``: the capture is already durable in this COMTRADE file (the acquisition
         pipeline wrote and fsynced it); it is referenced, not copied.
+        ``capture_key``: the caller's idempotency key (an edge agent's content hash); an
+        operation stored under it before is returned (``duplicate``), never stored twice.
         """
         kind = operation or capture.meta.get("operation") or infer_operation(capture)
         if kind not in ("open", "close"):
             raise CaptureError(f"operation must be 'open' or 'close', got {kind!r}")
-        key = Spool.new_key()
+        key = capture_key or Spool.new_key()
         now = datetime.now(timezone.utc)
         occurred = capture.start_time or now
         if occurred.tzinfo is None:
@@ -114,27 +118,33 @@ class Monitor:
         self.spool.put(entry)
         if self.metrics is not None:
             self.metrics.captures.labels(source=source).inc()
-        op_id = self._store(entry) if self.db_ok else None
+        created = [True]
+        op_id = self._store(entry, created) if self.db_ok else None
         if op_id is None:
             self._wake.set()
-        return IngestResult(key, op_id, op_id is None)
+        return IngestResult(key, op_id, op_id is None, duplicate=not created[0])
 
-    def _store(self, entry: dict) -> int | None:
-        """Commit one spool entry's operation and submit its job; None if the DB is unavailable."""
+    def _store(self, entry: dict, created: list | None = None) -> int | None:
+        """Commit one spool entry's operation and submit its job; None if the DB is unavailable.
+        ``created[0]`` is set False when the operation existed already."""
         try:
             with self.Session() as session, session.begin():
-                op, created = crud.create_operation(
+                op, was_new = crud.create_operation(
                     session, capture_key=entry["capture_key"], breaker_id=entry["breaker_id"], kind=entry["kind"],
                     occurred_at=datetime.fromisoformat(entry["occurred_at"]), source=entry["source"],
                     capture_path=entry["capture_path"], capture_sha256=entry["capture_sha256"],
                     flags=entry["flags"], sample_rate=entry["sample_rate"], n_samples=entry["n_samples"])
                 op_id = op.id
+                if created is not None and not was_new:
+                    created[0] = False
         except IntegrityError:  # stored concurrently by the spool thread: look it up
             with self.Session() as session:
                 op = crud.get_operation_by_key(session, capture_key=entry["capture_key"])
                 if op is None:
                     raise
                 op_id = op.id
+                if created is not None:
+                    created[0] = False
         except (OperationalError, DBAPIError) as exc:
             if self.db_ok:
                 log.warning("database unavailable (%s); spooling captures", exc.__class__.__name__)

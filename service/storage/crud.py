@@ -16,7 +16,8 @@ from sqlalchemy.orm import Session
 from .models import (AlarmRow, ApiKeyRow, BreakerRow, DaqStatusRow, FitRow, OperationRow,
                      ParameterValueRow, utcnow)
 
-ROLE_RANK = {"reader": 0, "operator": 1, "admin": 2}
+# ``agent`` (an edge agent) ranks below reader: it may only upload captures (``require(..., also=)``).
+ROLE_RANK = {"agent": -1, "reader": 0, "operator": 1, "admin": 2}
 
 
 # -- breakers ----------------------------------------------------------------------------------
