@@ -30,6 +30,8 @@ def cmd_agent(args) -> int:
             f"{'.'.join(map(str, e['loc'])) or 'file'}: {e['msg']}" for e in exc.errors())) from None
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
     logging.getLogger("httpx").setLevel(logging.WARNING)
+    # pymodbus logs every timed-out read with a hex dump; the driver reports its retries itself.
+    logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
     settings.data_dir.mkdir(parents=True, exist_ok=True)
     agent = Agent(settings)
     stop = threading.Event()
