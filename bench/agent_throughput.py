@@ -165,6 +165,7 @@ def main() -> int:
     from service.agent.settings import CentralSettings
     from service.breaker_file import load_breaker
 
+    load_before = os.getloadavg()[0]
     with tempfile.TemporaryDirectory(prefix="hvcb-agent-bench-") as tmpdir:
         tmp = Path(tmpdir)
         files = breaker_files(tmp / "breakers", AGENTS)
@@ -234,6 +235,7 @@ def main() -> int:
         "agents": AGENTS, "fit_workers": WORKERS,
         "database": "postgresql" if args.database_url.startswith("postgresql") else "sqlite",
         "cpu_cores": os.cpu_count(),
+        "load_average_1min_before_after": [round(load_before, 1), round(os.getloadavg()[0], 1)],
         "burst_captures": n_burst,
         "burst_upload_captures_per_s": round(upload_rate, 2),
         "burst_fitted_captures_per_s": round(fit_rate, 2),

@@ -27,7 +27,7 @@ def cmd_agent(args) -> int:
         settings = load_agent_settings(args.config)
     except ValidationError as exc:
         raise UserError(f"bad agent settings in {args.config}: " + "; ".join(
-            f"{'.'.join(map(str, e['loc'])) or 'file'}: {e['msg']}" for e in exc.errors())) from None
+            f"{'.'.join(map(str, e['loc'])) or 'file'}: {e['msg'].removeprefix('Value error, ')}" for e in exc.errors())) from None
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
     logging.getLogger("httpx").setLevel(logging.WARNING)
     # pymodbus logs every timed-out read with a hex dump; the driver reports its retries itself.

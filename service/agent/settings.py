@@ -22,7 +22,7 @@ class CentralSettings(BaseModel):
 
     model_config = {"extra": "forbid"}
     url: str = Field(..., description="https://hvcb.example.net (the API behind its TLS proxy)")
-    api_key: str = Field(..., min_length=16, description="a key of the `agent` role (hvcb key NAME --role agent)")
+    api_key: str = Field(..., description="a key of the `agent` role (hvcb key NAME --role agent)")
     breaker_ids: dict[str, int] = Field(..., description="breaker name -> its id on the central server")
     verify: bool | str = Field(True, description="TLS: true, false (tests only) or a CA bundle path")
     timeout_s: float = Field(30.0, gt=0)
@@ -35,6 +35,14 @@ class CentralSettings(BaseModel):
         if not v.startswith(("http://", "https://")):
             raise ValueError(f"central.url must start with https:// (or http:// on a trusted network), got {v!r}")
         return v.rstrip("/")
+
+    @field_validator("api_key")
+    @classmethod
+    def _key(cls, v):
+        if len(v) < 16:
+            raise ValueError("central.api_key is empty or too short: create one on the central server with "
+                             "`hvcb key NAME --role agent` (or set HVCB_AGENT_CENTRAL__API_KEY)")
+        return v
 
     @model_validator(mode="after")
     def _order(self):
