@@ -178,3 +178,49 @@ def test_acquisition_list_and_its_errors(tmp_path):
                       ([{"driver": "modbus", "breaker": "a", "retry_min_s": 5, "retry_max_s": 1}], "retry_min_s"):
         with pytest.raises(ValidationError, match=words):
             load_settings(acquisition=bad)
+
+
+def test_adding_and_removing_a_daq_is_a_restart_without_loss(tmp_path):
+    """Run 1: one Modbus DAQ (bay-a). While the service is down bay-a records one more capture
+    (held by the DAQ until acknowledged). Run 2 adds bay-b; run 3 removes bay-a."""
+    from service.api.app import create_app
+    from service.breaker_file import load_breaker
+    from service.storage.db import upgrade
+
+    files = breaker_files(tmp_path / "breakers", ["bay-a", "bay-b"])
+    a_breaker, b_breaker = (load_breaker(f) for f in files)
+    daq_a, daq_b = ModbusDaq(a_breaker), ModbusDaq(b_breaker)
+    url = f"sqlite:///{tmp_path / 'data' / 'hvcb.sqlite3'}"
+    (tmp_path / "data").mkdir()
+    upgrade(url)
+
+    def entry(name, daq):
+        return {"driver": "modbus", "breaker": name, "modbus": {"port": daq.port, "poll_interval_s": 0.1}}
+
+    keys = []
+
+    def run(acquisition, expect):
+        settings = make_settings(tmp_path, url, breakers=files, acquisition=acquisition,
+                                 fit_function="fleet_helpers:no_fit")
+        with TestClient(create_app(settings, on_key=keys.append)) as client:
+            h = {"X-API-Key": keys[0]}
+            ids = {b["name"]: b["id"] for b in client.get("/api/v1/breakers", headers=h).json()}
+
+            def counts():
+                return {n: len(_ops(client, h, ids[n])) for n in ids}
+            poll(lambda: counts() == expect, 60, f"operations {expect}")
+            assert [d["breaker"] for d in client.get("/healthz").json()["daqs"]] == [a["breaker"] for a in acquisition]
+
+    try:
+        daq_a.add(capture_block(a_breaker, "open", 41, 0))
+        daq_a.add(capture_block(a_breaker, "close", 42, 10_000_000))
+        run([entry("bay-a", daq_a)], {"bay-a": 2, "bay-b": 0})
+        daq_a.add(capture_block(a_breaker, "open", 43, 20_000_000))  # while the service is stopped
+        daq_b.add(capture_block(b_breaker, "open", 51, 0))
+        run([entry("bay-a", daq_a), entry("bay-b", daq_b)], {"bay-a": 3, "bay-b": 1})
+        daq_b.add(capture_block(b_breaker, "close", 52, 10_000_000))
+        run([entry("bay-b", daq_b)], {"bay-a": 3, "bay-b": 2})
+        assert daq_a.acknowledged == 3 and daq_b.acknowledged == 2
+    finally:
+        daq_a.kill()
+        daq_b.kill()
