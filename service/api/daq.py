@@ -14,7 +14,7 @@ from pathlib import Path
 
 from sqlalchemy.exc import DBAPIError, OperationalError
 
-from service.acquisition.daq_runner import DaqGroup, DaqRunner, DaqState, make_driver  # noqa: F401
+from service.acquisition.daq_runner import DaqGroup, DaqRunner, DaqState
 from service.storage import crud
 
 log = logging.getLogger("hvcb.daq")

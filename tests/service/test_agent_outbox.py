@@ -106,3 +106,16 @@ def test_forwarder_sends_dedupes_and_sets_aside_what_the_server_refuses(tmp_path
             assert crud.count_operations(s) == 1
     finally:
         central.stop()
+
+
+def test_agent_command_refuses_bad_settings_in_one_line(tmp_path, capsys):
+    from service.cli import main
+
+    assert main(["agent", "--config", str(tmp_path / "missing.toml")]) == 2
+    assert "agent settings file not found" in capsys.readouterr().err
+    cfg = tmp_path / "edge.toml"
+    cfg.write_text(f'breakers = ["{BREAKER_FILE}"]\n[[acquisition]]\ndriver = "modbus"\n'
+                   '[central]\nurl = "https://central.example"\napi_key = ""\nbreaker_ids = {}\n')
+    assert main(["agent", "--config", str(cfg)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "hvcb key NAME --role agent" in err and "Traceback" not in err
