@@ -8,7 +8,8 @@ code minus the DAQ: an Outbox of durable COMTRADE captures and a Forwarder posti
 1. Burst: every agent has PER_AGENT captures waiting at once (a WAN back after an outage).
    Figures: captures/s accepted by the upload API, captures/s fitted (upload → fit visible
    over REST), p95 capture → visible fit.
-2. Steady: the agents together produce captures at half the fitted rate measured in 1.
+2. Steady: the agents together produce captures at a quarter of the fitted rate measured in 1
+   (well below capacity even when the shared machine gets busier).
    Figure: p95 capture → visible fit at that load.
 
 "Visible" = the first poll of GET /api/v1/breakers/{id}/operations showing the fit done or
@@ -207,16 +208,19 @@ def main() -> int:
             burst_lat = tracker.latencies(burst)
             upload_rate, fit_rate = n_burst / accepted_s, n_burst / visible_s
 
-            # 2. steady load at half the fitted rate
-            rate = fit_rate / 2
+            # 2. steady load at a quarter of the fitted rate
+            rate = fit_rate / 4
             interval = 1.0 / rate
             n_steady = min(int(args.steady_s * rate), sum(len(a.staged) for a in agents))
             print(f"steady: {rate:.2f} captures/s for {n_steady} captures", flush=True)
             before = set(tracker.captured)
+            follow = threading.Thread(target=tracker.poll_until, args=(len(before) + n_steady, 300))
+            follow.start()  # fits are seen as they become visible, not after the last capture
             start = time.monotonic()
             for k in range(n_steady):
                 agents[k % AGENTS].capture()
                 time.sleep(max(0.0, start + (k + 1) * interval - time.monotonic()))
+            follow.join()
             tracker.poll_until(len(before) + n_steady, 300)
             steady = [o for o in tracker.captured if o not in before]
             steady_lat = tracker.latencies(steady)

@@ -352,11 +352,6 @@ async def upload_capture(breaker_id: BreakerId, request: Request, response: Resp
     source = "agent" if who.role == "agent" else "upload"
     result = await run_in_threadpool(monitor.ingest, capture, breaker_id=breaker_id, operation=kind, source=source,
                                      capture_key=idempotency_key)
-    if result.duplicate:  # stored by a concurrent retry of the same capture
-        with request.app.state.Session() as again:
-            dup = _duplicate(again, breaker_id, result.capture_key, response)
-        if dup is not None:
-            return dup
     return s.UploadAccepted(operation_id=result.operation_id, capture_key=result.capture_key, operation=kind,
                             status="spooled" if result.spooled else "queued")
 

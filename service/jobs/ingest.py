@@ -29,7 +29,6 @@ class IngestResult:
     capture_key: str
     operation_id: int | None  # None: spooled, the database was unavailable
     spooled: bool
-    duplicate: bool = False  # an operation with this capture key existed already
 
 
 def infer_operation(capture: Capture) -> str:
@@ -95,7 +94,7 @@ class Monitor:
         ``capture_path``: the capture is already durable in this COMTRADE file (the acquisition
         pipeline wrote and fsynced it); it is referenced, not copied.
         ``capture_key``: the caller's idempotency key (an edge agent's content hash); an
-        operation stored under it before is returned (``duplicate``), never stored twice.
+        operation stored under it before is returned, never stored twice.
         """
         kind = operation or capture.meta.get("operation") or infer_operation(capture)
         if kind not in ("open", "close"):
@@ -118,33 +117,27 @@ class Monitor:
         self.spool.put(entry)
         if self.metrics is not None:
             self.metrics.captures.labels(source=source).inc()
-        created = [True]
-        op_id = self._store(entry, created) if self.db_ok else None
+        op_id = self._store(entry) if self.db_ok else None
         if op_id is None:
             self._wake.set()
-        return IngestResult(key, op_id, op_id is None, duplicate=not created[0])
+        return IngestResult(key, op_id, op_id is None)
 
-    def _store(self, entry: dict, created: list | None = None) -> int | None:
-        """Commit one spool entry's operation and submit its job; None if the DB is unavailable.
-        ``created[0]`` is set False when the operation existed already."""
+    def _store(self, entry: dict) -> int | None:
+        """Commit one spool entry's operation and submit its job; None if the DB is unavailable."""
         try:
             with self.Session() as session, session.begin():
-                op, was_new = crud.create_operation(
+                op, created = crud.create_operation(
                     session, capture_key=entry["capture_key"], breaker_id=entry["breaker_id"], kind=entry["kind"],
                     occurred_at=datetime.fromisoformat(entry["occurred_at"]), source=entry["source"],
                     capture_path=entry["capture_path"], capture_sha256=entry["capture_sha256"],
                     flags=entry["flags"], sample_rate=entry["sample_rate"], n_samples=entry["n_samples"])
                 op_id = op.id
-                if created is not None and not was_new:
-                    created[0] = False
         except IntegrityError:  # stored concurrently by the spool thread: look it up
             with self.Session() as session:
                 op = crud.get_operation_by_key(session, capture_key=entry["capture_key"])
                 if op is None:
                     raise
                 op_id = op.id
-                if created is not None:
-                    created[0] = False
         except (OperationalError, DBAPIError) as exc:
             if self.db_ok:
                 log.warning("database unavailable (%s); spooling captures", exc.__class__.__name__)
