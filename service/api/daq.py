@@ -54,6 +54,9 @@ class ServiceDaqs:
                                          Path(self.settings.capture_dir) / "daq" / row.name, name=name,
                                          on_capture=self._ingest_for(row.id, name),
                                          on_status=self._report_for(row.id)))
+        if runners:  # a DAQ removed from the settings leaves no stale "disconnected" status behind
+            with self.Session() as session, session.begin():
+                crud.forget_daqs_except(session, breaker_ids=list(self.breaker_ids.values()))
         self.group = DaqGroup(runners)
         self.group.start()
 

@@ -307,3 +307,12 @@ def report_daq(session: Session, *, breaker_id: int, connected: bool, frames: in
 
 def daq_statuses(session: Session) -> list[DaqStatusRow]:
     return list(session.scalars(select(DaqStatusRow)))
+
+
+def forget_daqs_except(session: Session, *, breaker_ids: list[int]) -> int:
+    """Delete the stored DAQ status of every breaker not in ``breaker_ids`` (a DAQ removed from
+    the settings), so its breaker is not shown with a dead DAQ forever. Returns rows deleted."""
+    from sqlalchemy import delete
+
+    res = session.execute(delete(DaqStatusRow).where(DaqStatusRow.breaker_id.not_in(breaker_ids)))
+    return res.rowcount or 0

@@ -209,7 +209,10 @@ def test_adding_and_removing_a_daq_is_a_restart_without_loss(tmp_path):
             def counts():
                 return {n: len(_ops(client, h, ids[n])) for n in ids}
             poll(lambda: counts() == expect, 60, f"operations {expect}")
-            assert [d["breaker"] for d in client.get("/healthz").json()["daqs"]] == [a["breaker"] for a in acquisition]
+            health = client.get("/healthz").json()
+            assert [d["breaker"] for d in health["daqs"]] == [a["breaker"] for a in acquisition]
+            poll(lambda: sorted(d["breaker"] for d in client.get("/healthz").json()["daq"])
+                 == sorted(a["breaker"] for a in acquisition), 10, "the stored DAQ statuses")
 
     try:
         daq_a.add(capture_block(a_breaker, "open", 41, 0))
