@@ -229,22 +229,33 @@ class DaqRunner:
                                                       clock=self.clock))
         stopper = asyncio.create_task(self._stop.wait())
         driver = self.driver
+        close = getattr(driver, "aclose", None)
         try:
-            done, _ = await asyncio.wait({pipeline, stopper}, return_when=asyncio.FIRST_COMPLETED)
+            await asyncio.wait({pipeline, stopper}, return_when=asyncio.FIRST_COMPLETED)
         finally:
+            if not pipeline.done() and close is not None:
+                # Close the driver first: a client library may swallow a cancellation mid-read
+                # and poll on; a closed driver ends its iteration whatever it was doing.
+                try:
+                    await close()
+                except Exception:
+                    pass
             for task in (pipeline, stopper):
                 task.cancel()
-            await asyncio.gather(pipeline, stopper, return_exceptions=True)
-            close = getattr(driver, "aclose", None)
+            _, pending = await asyncio.wait({pipeline, stopper}, timeout=10)
+            if pending:
+                log.error("DAQ %s: the %s driver did not stop within 10 s", self.name, self.acq.driver)
             if close is not None:
                 try:
                     await close()
-                except Exception:  # already closed by the pipeline
+                except Exception:  # already closed
                     pass
         if self._stop.is_set():
             return "stopped"
         productive = self._state.captures > captures_before or driver.stats.frames > 0 \
             or driver.stats.captures > 0
+        if not pipeline.done():
+            return productive, "the driver did not stop"
         exc = pipeline.exception() if not pipeline.cancelled() else None
         if exc is not None:
             return productive, f"{type(exc).__name__}: {exc}"
