@@ -221,8 +221,17 @@ class DaqRunner:
         # One file prefix per run: a driver restarted from sample 0 never overwrites earlier files.
         prefix = f"op-{utcnow():%Y%m%dT%H%M%S}-{run_no}"
 
+        inflight: set = set()
+
         async def on_capture(cfg_path, detected):
-            await asyncio.to_thread(self._deliver, cfg_path, detected)
+            # Shielded: a stop waits for a capture being handed on rather than abandoning it.
+            fut = asyncio.ensure_future(asyncio.to_thread(self._deliver, cfg_path, detected))
+            inflight.add(fut)
+            try:
+                await asyncio.shield(fut)
+            finally:
+                if fut.done():
+                    inflight.discard(fut)
 
         pipeline = asyncio.create_task(capture_stream(self.driver, TriggerSettings.from_breaker(self.breaker),
                                                       self.out_dir, on_capture=on_capture, prefix=prefix,
@@ -245,6 +254,8 @@ class DaqRunner:
             _, pending = await asyncio.wait({pipeline, stopper}, timeout=10)
             if pending:
                 log.error("DAQ %s: the %s driver did not stop within 10 s", self.name, self.acq.driver)
+            if inflight:
+                await asyncio.wait(inflight, timeout=30)
             if close is not None:
                 try:
                     await close()
