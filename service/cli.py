@@ -24,6 +24,7 @@ COMMANDS = {
     "key": ("service.api.commands", "create or revoke API keys"),
     "worker": ("service.api.commands", "run a Celery fit worker (scaled-out shape)"),
     "diagnose": ("service.diagnosis.commands", "sim-to-real gap diagnosis of captures"),
+    "agent": ("service.agent.commands", "edge agent: acquisition only, forwarding captures to a central hvcb"),
 }
 
 

@@ -10,6 +10,7 @@ Environment variables: ``HVCB_DATA_DIR``, ``DATABASE_URL`` (or ``HVCB_DATABASE_U
 from __future__ import annotations
 
 import contextvars
+import logging
 from pathlib import Path
 from typing import Literal
 
@@ -22,6 +23,8 @@ DEFAULT_CONFIG = REPO_ROOT / "config" / "default.toml"
 
 # Known weak secrets refused anywhere a key or password can be configured.
 _WEAK = {"changethis", "changeme", "secret", "password", "admin", "postgres", "hvcb", "test"}
+
+log = logging.getLogger("hvcb.settings")
 
 _config_file: contextvars.ContextVar[Path | None] = contextvars.ContextVar("hvcb_config_file", default=None)
 
@@ -60,12 +63,18 @@ class ReplayDaqSettings(BaseModel):
 
 
 class AcquisitionSettings(BaseModel):
-    """``[acquisition]``: the DAQ this service listens to. Only the chosen driver's table is used."""
+    """One ``[[acquisition]]`` entry: a DAQ and the breaker it watches. Only the chosen driver's
+    table is used. A driver that fails or whose stream ends is rebuilt after ``retry_min_s``,
+    doubling up to ``retry_max_s`` (docs/deployment.md)."""
 
     model_config = {"extra": "forbid"}
     driver: Literal["none", "serial", "modbus", "replay"] = "none"
     breaker: str = Field("", description="breaker name (breaker file `name`); empty = the first configured")
+    name: str = Field("", max_length=60, pattern=r"^[A-Za-z0-9_.:-]*$",
+                      description="label of this DAQ in /healthz and /metrics; empty = the breaker name")
     status_interval_s: float = Field(1.0, gt=0, description="how often the driver counters are stored")
+    retry_min_s: float = Field(1.0, gt=0, description="first wait before a failed driver is rebuilt [s]")
+    retry_max_s: float = Field(60.0, gt=0, description="longest wait between rebuilds [s]")
     serial: SerialDaqSettings = Field(default_factory=SerialDaqSettings)
     modbus: ModbusDaqSettings = Field(default_factory=ModbusDaqSettings)
     replay: ReplayDaqSettings = Field(default_factory=ReplayDaqSettings)
@@ -78,6 +87,8 @@ class AcquisitionSettings(BaseModel):
             raise ValueError("acquisition driver 'modbus' with transport 'rtu' needs modbus.url")
         if self.driver == "replay" and not self.replay.files:
             raise ValueError("acquisition driver 'replay' needs replay.files")
+        if self.retry_min_s > self.retry_max_s:
+            raise ValueError("acquisition retry_min_s must not exceed retry_max_s")
         return self
 
 
@@ -90,6 +101,38 @@ class WebSettings(BaseModel):
         "auto", description="Secure flag of the session cookie; auto = when the request came over HTTPS")
     poll_s: float = Field(3.0, gt=0, le=300, description="how often open pages ask for news")
     secret: str = Field("", description="cookie signing key; empty = generated once into <data_dir>/web.secret")
+
+
+def acquisition_list(value, where: str = "settings"):
+    """``[[acquisition]]`` (a list) as is; the old single ``[acquisition]`` table as a one-entry
+    list, with a deprecation note. Entries with driver "none" are dropped."""
+    if value is None:
+        return []
+    if isinstance(value, (dict, AcquisitionSettings)):
+        log.warning("%s: the single [acquisition] table is deprecated; write [[acquisition]] "
+                    "(one entry per DAQ, see docs/deployment.md)", where)
+        value = [value]
+    if not isinstance(value, (list, tuple)):
+        raise ValueError("acquisition must be a list of [[acquisition]] tables")
+    out = []
+    for v in value:
+        driver = v.driver if isinstance(v, AcquisitionSettings) else (v.get("driver", "none")
+                                                                      if isinstance(v, dict) else None)
+        if driver != "none":
+            out.append(v)
+    return out
+
+
+def check_daq_list(daqs: list[AcquisitionSettings]) -> None:
+    """Several DAQs need their breaker named, one DAQ per breaker, and distinct labels."""
+    if len(daqs) > 1 and any(not d.breaker for d in daqs):
+        raise ValueError("with several [[acquisition]] entries each needs its `breaker`")
+    breakers = [d.breaker for d in daqs]
+    if len(set(breakers)) != len(breakers):
+        raise ValueError("two [[acquisition]] entries watch the same breaker; one DAQ per breaker")
+    names = [d.name for d in daqs if d.name]
+    if len(set(names)) != len(names):
+        raise ValueError("two [[acquisition]] entries have the same name")
 
 
 class Settings(BaseSettings):
@@ -126,8 +169,9 @@ class Settings(BaseSettings):
                                    description="prefix of every Redis key (several installations, one Redis)")
     bootstrap_admin_key: str | None = Field(None, description="admin key created at first start; "
                                             "generated when empty")
-    acquisition: AcquisitionSettings = Field(default_factory=AcquisitionSettings,
-                                             description="the DAQ driver ([acquisition] table)")
+    acquisition: list[AcquisitionSettings] = Field(
+        default_factory=list, description="the DAQs this service listens to ([[acquisition]], one per DAQ; "
+                                          "the old single [acquisition] table is still read)")
     web: WebSettings = Field(default_factory=WebSettings, description="the web page ([web] table)")
     alarms: dict = Field(default_factory=dict, description="drift detector settings, see docs/alarms.md "
                          "(service.alarms.settings.DriftSettings)")
@@ -160,6 +204,17 @@ class Settings(BaseSettings):
         if len(v) < 24 or v.lower() in _WEAK:
             raise ValueError("bootstrap_admin_key must be at least 24 random characters; "
                              "leave it empty to have one generated")
+        return v
+
+    @field_validator("acquisition", mode="before")
+    @classmethod
+    def _acquisition_list(cls, v):
+        return acquisition_list(v)
+
+    @field_validator("acquisition")
+    @classmethod
+    def _daq_list(cls, v):
+        check_daq_list(v)
         return v
 
     @field_validator("alarms")

@@ -7,9 +7,11 @@ into place, so a crash never leaves a queued job pointing at a half-written file
 from __future__ import annotations
 
 import asyncio
+import dataclasses
 import inspect
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from datetime import datetime, timedelta
 from pathlib import Path
 
 from drivers.capture import Capture
@@ -60,7 +62,8 @@ def capture_name(detected: DetectedOperation, prefix: str = "op") -> str:
 async def capture_stream(driver, detector: TriggerDetector | TriggerSettings, out_dir: str | Path, *,
                          on_capture: Callable | None = None, fmt: str = "BINARY",
                          prefix: str = "op", station: str = "hvcb",
-                         max_captures: int | None = None) -> CaptureStats:
+                         max_captures: int | None = None,
+                         clock: Callable[[], datetime] | None = None) -> CaptureStats:
     """Read blocks from ``driver`` until it ends, writing each detected operation durably.
 
     Parameters
@@ -77,6 +80,10 @@ async def capture_stream(driver, detector: TriggerDetector | TriggerSettings, ou
         COMTRADE data format (``BINARY`` default, ``ASCII``, ``BINARY32``, ``FLOAT32``).
     max_captures : int, optional
         Stop after this many captures (the driver is closed if it can be).
+    clock : callable, optional
+        ``clock()`` -> aware UTC datetime. A capture without a start time (a DAQ carries none)
+        is stamped ``clock() - duration`` (the wall clock at its first sample, to within the
+        transport latency), so the time travels with the file (edge agent → central server).
     """
     out_dir = Path(out_dir)
     stats = CaptureStats()
@@ -84,6 +91,9 @@ async def capture_stream(driver, detector: TriggerDetector | TriggerSettings, ou
 
     async def emit(found):
         for det in found:
+            if clock is not None and det.capture.start_time is None:
+                start = clock() - timedelta(seconds=det.capture.duration)
+                det = dataclasses.replace(det, capture=dataclasses.replace(det.capture, start_time=start))
             path = await asyncio.to_thread(write_comtrade, det.capture, out_dir,
                                            capture_name(det, prefix), format=fmt, station=station)
             stats.captures += 1

@@ -64,7 +64,7 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
     from service.workers import make_executor
     from service.workers.diagnoses import DiagnosisRunner
 
-    from .daq import DaqRunner
+    from .daq import ServiceDaqs
 
     @asynccontextmanager
     async def lifespan(app: FastAPI):
@@ -77,7 +77,7 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
             on_key(key)
         ex = executor or make_executor(settings, on_result=lambda r: app.state.metrics_local.observe(r))
         monitor = Monitor(settings, Session, ex)
-        daq = DaqRunner(settings, Session, monitor)
+        daq = ServiceDaqs(settings, Session, monitor)
         app.state.engine, app.state.Session, app.state.monitor, app.state.daq = engine, Session, monitor, daq
         app.state.diagnoses = DiagnosisRunner(settings.sqlalchemy_url)
         if start_monitor:
@@ -135,21 +135,28 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
 
     @app.get("/healthz", tags=["service"])
     def healthz(request: Request):
-        """Liveness (open: no key needed). Says whether the database answers and the DAQ is connected.
+        """Liveness (open: no key needed). Says whether the database answers and the DAQs are connected.
 
-        ``daq_connected``: true/false for this service's DAQ (``[acquisition]``), null when none is
-        configured; ``daq`` lists every breaker's last reported DAQ status (also remote ones).
+        ``daqs``: this service's DAQs (``[[acquisition]]``), each with its state (starting, running,
+        retrying, finished, stopped), ``up``, ``down``, last error, restarts and counters;
+        ``daq_connected``: true when every one is up, null when none is configured; ``daq`` lists
+        every breaker's last reported DAQ status (also remote ones). Any DAQ down: ``degraded``.
         """
         from datetime import timedelta
 
         from service.storage.models import utcnow
 
         monitor, daq = request.app.state.monitor, request.app.state.daq
+        states = daq.states() if daq.enabled else []
+        drivers = daq.drivers
         out = {"status": "ok", "database": "ok", "spooled_captures": len(monitor.spool),
-               "daq_connected": daq.connected() if daq.enabled else None,
-               "daq_driver": settings.acquisition.driver, "daq": []}
-        if daq.enabled and daq.error:
-            out["daq_error"] = daq.error
+               "daq_connected": all(st.up for st in states) if daq.enabled and states else
+               (False if daq.enabled else None),
+               "daq_driver": drivers[0] if len(drivers) == 1 else ("none" if not drivers else "multi"),
+               "daqs": [st.to_dict() for st in states], "daq": []}
+        errors = [f"{st.name}: {st.error}" for st in states if st.error]
+        if errors:
+            out["daq_error"] = "; ".join(errors)
         try:
             with request.app.state.Session() as session:
                 session.execute(select(1))
@@ -164,7 +171,7 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
                                        "captures": d.captures})
         except (OperationalError, DBAPIError):
             out["status"], out["database"] = "degraded", "unavailable"
-        if daq.enabled and not out["daq_connected"]:
+        if any(st.down for st in states) or (daq.enabled and not states):
             out["status"] = "degraded"
         return out
 

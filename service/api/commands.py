@@ -30,7 +30,8 @@ def register(sub) -> None:
 
     p = sub.add_parser("key", help="create an API key (prints it once)")
     p.add_argument("name")
-    p.add_argument("--role", choices=("reader", "operator", "admin"), default="reader")
+    p.add_argument("--role", choices=("agent", "reader", "operator", "admin"), default="reader",
+                   help="agent: an edge agent's key, which may only upload captures")
     p.add_argument("--config", default=None)
     p.set_defaults(func=cmd_key)
 
@@ -144,8 +145,8 @@ def cmd_demo(args) -> int:
     breaker = load_breaker(base.breakers[0])
     daq = DemoDaq(breaker, DemoScript(interval_s=args.interval))
     port = daq.start()
-    acquisition = {"driver": "modbus", "breaker": breaker.name,
-                   "modbus": {"transport": "tcp", "host": "127.0.0.1", "port": port, "poll_interval_s": 0.2}}
+    acquisition = [{"driver": "modbus", "breaker": breaker.name,
+                    "modbus": {"transport": "tcp", "host": "127.0.0.1", "port": port, "poll_interval_s": 0.2}}]
     try:
         settings = _settings(args, host=args.host, port=args.port, data_dir=demo_dir, database_url="",
                              broker_url="", executor="local", acquisition=acquisition)

@@ -17,7 +17,7 @@ from service.settings import Settings
 from service.storage import crud
 
 api_key_header = APIKeyHeader(name="X-API-Key", auto_error=False,
-                              description="API key; roles reader < operator < admin")
+                              description="API key; roles reader < operator < admin; agent may only upload")
 
 
 def get_session(request: Request) -> Iterator[Session]:
@@ -68,8 +68,9 @@ class KeyCache:
         self._entries.clear()
 
 
-def require(role: str):
-    """Dependency: 401 without a valid key, 403 when the key's role is below ``role``."""
+def require(role: str, *, also: tuple[str, ...] = ()):
+    """Dependency: 401 without a valid key, 403 when the key's role is below ``role`` and not
+    one of ``also`` (the ``agent`` role may upload and nothing else)."""
     need = crud.ROLE_RANK[role]
 
     async def dependency(request: Request, key: Annotated[str | None, Security(api_key_header)]) -> Principal:
@@ -83,7 +84,7 @@ def require(role: str):
         if principal is None:
             principal = await run_in_threadpool(_lookup, request, key)
             cache.put(digest, principal)
-        if crud.ROLE_RANK[principal.role] < need:
+        if crud.ROLE_RANK[principal.role] < need and principal.role not in also:
             raise HTTPException(403, f"this needs the {role} role; the key has {principal.role}")
         return principal
 
@@ -104,3 +105,4 @@ def _lookup(request: Request, key: str) -> Principal:
 ReaderDep = Annotated[Principal, Depends(require("reader"))]
 OperatorDep = Annotated[Principal, Depends(require("operator"))]
 AdminDep = Annotated[Principal, Depends(require("admin"))]
+UploaderDep = Annotated[Principal, Depends(require("operator", also=("agent",)))]

@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Annotated, Literal
 
 import numpy as np
-from fastapi import APIRouter, File, Form, HTTPException, Path as PathParam, Query, Request, UploadFile
+from fastapi import APIRouter, File, Form, Header, HTTPException, Path as PathParam, Query, Request, UploadFile
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import Response
 from sqlalchemy.exc import IntegrityError
@@ -22,7 +22,7 @@ from service.storage import crud
 from service.storage.models import utcnow
 
 from . import schemas as s
-from .deps import AdminDep, MonitorDep, OperatorDep, ReaderDep, SessionDep, SettingsDep
+from .deps import AdminDep, MonitorDep, OperatorDep, ReaderDep, SessionDep, SettingsDep, UploaderDep
 
 router = APIRouter(prefix="/api/v1")
 
@@ -260,7 +260,29 @@ def _pair_from_zip(blob: bytes, cap: int) -> tuple[bytes, bytes, str]:
         raise HTTPException(422, f"cannot extract the archive: {exc}") from None
 
 
-def capture_from_upload(blobs: dict[str, bytes], row, operation: str | None, cap_bytes: int):
+def _duplicate(session, breaker_id: int, key: str, response: Response) -> s.UploadAccepted | None:
+    """The operation already stored under this idempotency key, or None."""
+    op = crud.get_operation_by_key(session, capture_key=key)
+    if op is None:
+        return None
+    if op.breaker_id != breaker_id:
+        raise HTTPException(409, f"this capture (Idempotency-Key {key[:12]}...) is stored under breaker "
+                                 f"{op.breaker_id}, not {breaker_id}")
+    response.status_code = 200
+    return s.UploadAccepted(operation_id=op.id, capture_key=key, operation=op.kind, status="duplicate")
+
+
+def content_hash(cfg: bytes, dat: bytes) -> str:
+    """The capture's content hash: SHA-256 over the hex SHA-256 of the .cfg then the .dat
+    (``service.storage.spool.capture_digest`` of the two files)."""
+    import hashlib
+
+    return hashlib.sha256(hashlib.sha256(cfg).hexdigest().encode() + hashlib.sha256(dat).hexdigest().encode()
+                          ).hexdigest()
+
+
+def capture_from_upload(blobs: dict[str, bytes], row, operation: str | None, cap_bytes: int,
+                        idempotency_key: str | None = None):
     """(Capture, "open"|"close") from uploaded files {lower-case name: bytes}: a .cfg and its .dat,
     or one .zip holding them. Raises HTTPException (413/422) with the reason in words; the web page
     uses it too."""
@@ -278,6 +300,9 @@ def capture_from_upload(blobs: dict[str, bytes], row, operation: str | None, cap
             raise HTTPException(422, "send a COMTRADE .cfg and its .dat (two files), one .cff, "
                                      "or one .zip holding a .cfg and its .dat")
         cfg, dat, name = blobs[cfg_names[0]], blobs[dat_names[0]], cfg_names[0]
+    if idempotency_key is not None and content_hash(cfg, dat or b"") != idempotency_key:
+        raise HTTPException(422, "the Idempotency-Key is not the content hash of the uploaded .cfg and .dat "
+                                 "(damaged in transit, or the wrong key)")
     breaker = crud.breaker_model(row)
     try:
         # the same reader as hvcb fit/detect/inspect: the same message for the same file
@@ -300,26 +325,40 @@ def capture_from_upload(blobs: dict[str, bytes], row, operation: str | None, cap
 
 
 @router.post("/breakers/{breaker_id}/captures", response_model=s.UploadAccepted, status_code=202,
-             responses={**AUTH, **NOT_FOUND, 413: {"model": s.Message}, 422: {"model": s.Message}},
+             responses={**AUTH, **NOT_FOUND, 200: {"model": s.UploadAccepted,
+                                                   "description": "stored before under this Idempotency-Key"},
+                        409: {"model": s.Message}, 413: {"model": s.Message}, 422: {"model": s.Message}},
              tags=["operations"])
-async def upload_capture(breaker_id: BreakerId, request: Request, session: SessionDep, settings: SettingsDep,
-                         monitor: MonitorDep, _: OperatorDep,
+async def upload_capture(breaker_id: BreakerId, request: Request, response: Response, session: SessionDep,
+                         settings: SettingsDep, monitor: MonitorDep, who: UploaderDep,
                          files: Annotated[list[UploadFile], File(description="a .cfg and its .dat, one .cff, or one .zip")],
                          operation: Annotated[Literal["open", "close"] | None,
-                                              Form(description="inferred from the travel when omitted")] = None):
+                                              Form(description="inferred from the travel when omitted")] = None,
+                         idempotency_key: Annotated[str | None, Header(
+                             alias="Idempotency-Key", pattern=r"^[0-9a-f]{64}$",
+                             description="the capture's content hash (SHA-256 of the hex SHA-256 of the .cfg "
+                                         "then the .dat): a retry answers with the stored operation")] = None):
+    """Upload one capture (operator, admin or agent key). With ``Idempotency-Key`` a capture is
+    stored once however often it is sent: a repeat answers 200 with the existing operation."""
     cap_bytes = settings.max_upload_bytes
     declared = request.headers.get("content-length")
     if declared and declared.isdigit() and int(declared) > cap_bytes + 64 * 1024:
         raise HTTPException(413, f"upload larger than the {cap_bytes} byte limit")
     row = _breaker_or_404(session, breaker_id)
+    if idempotency_key is not None:
+        dup = _duplicate(session, breaker_id, idempotency_key, response)
+        if dup is not None:
+            return dup
     blobs, budget = {}, cap_bytes
     for f in files:
         data = await _read_capped(f, budget)
         budget -= len(data)
         blobs[(f.filename or "").lower()] = data
-    capture, kind = capture_from_upload(blobs, row, operation, cap_bytes)
+    capture, kind = capture_from_upload(blobs, row, operation, cap_bytes, idempotency_key=idempotency_key)
     session.close()
-    result = monitor.ingest(capture, breaker_id=breaker_id, operation=kind, source="upload")
+    source = "agent" if who.role == "agent" else "upload"
+    result = await run_in_threadpool(monitor.ingest, capture, breaker_id=breaker_id, operation=kind, source=source,
+                                     capture_key=idempotency_key)
     return s.UploadAccepted(operation_id=result.operation_id, capture_key=result.capture_key, operation=kind,
                             status="spooled" if result.spooled else "queued")
 

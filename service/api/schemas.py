@@ -23,7 +23,7 @@ UNITS = {"AO": "s^-2", "BO": "s^-2", "DO": "s^-1", "EO": "s^-2", "AC": "s^-2", "
 OPENING = ("AO", "BO", "DO", "EO")
 CLOSING = ("AC", "BC", "CC")
 ParameterName = Literal["AO", "BO", "DO", "EO", "AC", "BC", "CC"]
-Role = Literal["reader", "operator", "admin"]
+Role = Literal["agent", "reader", "operator", "admin"]
 
 
 class ORM(BaseModel):
@@ -109,7 +109,8 @@ class UploadAccepted(BaseModel):
                                                  "spooled and will be stored after recovery")
     capture_key: str
     operation: Literal["open", "close"]
-    status: Literal["queued", "spooled"]
+    status: Literal["queued", "spooled", "duplicate"] = Field(
+        description="duplicate: a capture with this Idempotency-Key was stored before; this is its operation")
 
 
 # -- health and trends -------------------------------------------------------------------------

@@ -87,16 +87,19 @@ class Monitor:
 
     # -- ingest --------------------------------------------------------------------------------
     def ingest(self, capture: Capture, *, breaker_id: int, operation: str | None = None,
-               source: str = "daq", capture_path: str | Path | None = None) -> IngestResult:
+               source: str = "daq", capture_path: str | Path | None = None,
+               capture_key: str | None = None) -> IngestResult:
         """Make ``capture`` durable, store its operation and queue its fit.
 
         ``capture_path``: the capture is already durable in this COMTRADE file (the acquisition
         pipeline wrote and fsynced it); it is referenced, not copied.
+        ``capture_key``: the caller's idempotency key (an edge agent's content hash); an
+        operation stored under it before is returned, never stored twice.
         """
         kind = operation or capture.meta.get("operation") or infer_operation(capture)
         if kind not in ("open", "close"):
             raise CaptureError(f"operation must be 'open' or 'close', got {kind!r}")
-        key = Spool.new_key()
+        key = capture_key or Spool.new_key()
         now = datetime.now(timezone.utc)
         occurred = capture.start_time or now
         if occurred.tzinfo is None:

@@ -16,7 +16,8 @@ from sqlalchemy.orm import Session
 from .models import (AlarmRow, ApiKeyRow, BreakerRow, DaqStatusRow, FitRow, OperationRow,
                      ParameterValueRow, utcnow)
 
-ROLE_RANK = {"reader": 0, "operator": 1, "admin": 2}
+# ``agent`` (an edge agent) ranks below reader: it may only upload captures (``require(..., also=)``).
+ROLE_RANK = {"agent": -1, "reader": 0, "operator": 1, "admin": 2}
 
 
 # -- breakers ----------------------------------------------------------------------------------
@@ -306,3 +307,12 @@ def report_daq(session: Session, *, breaker_id: int, connected: bool, frames: in
 
 def daq_statuses(session: Session) -> list[DaqStatusRow]:
     return list(session.scalars(select(DaqStatusRow)))
+
+
+def forget_daqs_except(session: Session, *, breaker_ids: list[int]) -> int:
+    """Delete the stored DAQ status of every breaker not in ``breaker_ids`` (a DAQ removed from
+    the settings), so its breaker is not shown with a dead DAQ forever. Returns rows deleted."""
+    from sqlalchemy import delete
+
+    res = session.execute(delete(DaqStatusRow).where(DaqStatusRow.breaker_id.not_in(breaker_ids)))
+    return res.rowcount or 0

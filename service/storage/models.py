@@ -41,7 +41,7 @@ class Base(DeclarativeBase):
 
 FIT_STATUSES = ("queued", "running", "done", "failed")
 ALARM_STATES = ("raised", "acknowledged", "cleared")
-ROLES = ("reader", "operator", "admin")
+ROLES = ("agent", "reader", "operator", "admin")
 
 
 class BreakerRow(Base):
