@@ -4,7 +4,10 @@ the closing's end of the cam rise. Pure functions of the segment (travel ``T``, 
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
+from scipy.ndimage import maximum_filter1d, minimum_filter1d
 
 
 def moving_average(x: np.ndarray, w: int) -> np.ndarray:
@@ -18,7 +21,12 @@ def moving_average(x: np.ndarray, w: int) -> np.ndarray:
 
 
 def opening_end(T, M, S, r: int, settings, fs: float):
-    """Peak of the opening travel [fractional segment index] by a local cubic fit."""
+    """Peak of the opening travel [fractional segment index] and whether the fit succeeded.
+
+    The arrival at the top follows the model, but the return to rest can be much quicker (a
+    critically damped return) or swing past rest: the two sides are fitted separately, each
+    leaving the top with zero slope (see ``_two_sided_peak``).
+    """
     s = settings
 
     def n(seconds):
@@ -32,7 +40,159 @@ def opening_end(T, M, S, r: int, settings, fs: float):
     if back.size:
         stop = r + int(back[0])
     p0 = r + int(np.argmax(wide[r:stop]))
-    return _fit_peak(T, M, p0, n(s.peak_half_window_s))
+    return _two_sided_peak(T, M, wide, p0, n(s.peak_half_window_s),
+                           s.peak_fit_drop_fraction * s.stroke_rad, fs)
+
+
+
+MIN_SIDE = 16          # samples each side of a candidate top needs for its own fit
+TWO_SIDED_EVIDENCE = 20.0  # SSE drop [noise variances] that makes the two-sided fit win
+
+
+def _two_sided_peak(T, M, wide, p0: int, half: int, drop: float, fs: float):
+    """Top of the travel [fractional index] and whether the fit succeeded.
+
+    The top p is searched over every 4th sample, then to a quarter sample, for two least-squares
+    models in τ = t − p, both leaving the top with zero slope:
+
+    - one cubic across the top, y = c + a·τ² + b·τ³ (the model's own smooth return);
+    - one cubic per side (separate a, b before and after p), for a return much quicker than
+      the arrival (critically damped) or swinging past rest.
+
+    The two-sided model is taken when it lowers the residual by more than
+    ``TWO_SIDED_EVIDENCE`` noise variances (it has two more parameters). Each side's data run
+    from the top until the smoothed travel ``wide`` has fallen ``drop`` [rad] below it, at most
+    ``half`` samples, so a quick return is fitted only where a cubic still follows it. The
+    window is re-centred once on the result.
+    """
+    peak, ok, chosen = float(p0), False, None
+    for _ in range(2):
+        top = wide[p0]
+        lo = p0 - _run_above(wide[max(0, p0 - half):p0 + 1][::-1], top - drop)
+        hi = p0 + _run_above(wide[p0:min(T.size, p0 + half + 1)], top - drop) + 1
+        keep = M[lo:hi]
+        t = np.arange(lo, hi, dtype=float)[keep]
+        if t.size < 4 * MIN_SIDE:
+            return peak, ok
+        fit = _PeakFit(t, T[lo:hi][keep] - top, centre=float(p0), scale=float(half))
+        bounds = (t[MIN_SIDE], t[-MIN_SIDE - 1])
+        one, two = fit.search(bounds)
+        if two is None and one is None:
+            return peak, ok
+        if one is None or (two is not None and
+                           one[1] - two[1] > TWO_SIDED_EVIDENCE * two[1] / max(t.size - 6, 1)):
+            p, model = two[0], "two"
+        else:
+            p, model = one[0], "one"
+        if ok and model != chosen:
+            return peak, ok  # the re-centred window changed the verdict: keep the first answer
+        chosen = model
+        moved = abs(p - p0) >= 1.0
+        peak, ok, p0 = float(p), True, int(round(p))
+        if not moved:
+            break
+    return peak, ok
+
+
+def _run_above(x, level) -> int:
+    """Samples from the start of ``x`` before it first drops below ``level`` (all if never)."""
+    below = np.flatnonzero(x < level)
+    return int(below[0]) if below.size else x.size - 1
+
+
+def _binomial():
+    from math import comb
+
+    return np.array([[float(comb(j, k)) if k <= j else 0.0 for k in range(7)] for j in range(7)])
+
+
+class _PeakFit:
+    """Least-squares peak fits of samples (t, y) for many candidate tops at O(1) each.
+
+    Prefix sums of u^k and u^k·y (u = (t − centre)/scale, for conditioning) give every side's
+    moments about a candidate by the binomial expansion, so no candidate touches the samples.
+    """
+
+    COMB = _binomial()
+
+    def __init__(self, t, y, *, centre: float, scale: float):
+        self.centre, self.scale = centre, scale
+        self.u = (t - centre) / scale
+        self.m = self.u.size
+        powers = self.u[None, :] ** np.arange(7)[:, None]
+        self.P = np.concatenate([np.zeros((7, 1)), np.cumsum(powers, axis=1)], axis=1)
+        self.Q = np.concatenate([np.zeros((4, 1)), np.cumsum(powers[:4] * y, axis=1)], axis=1)
+        self.yy = float(y @ y)
+
+    def _moments(self, S, q, top):
+        """Moments about q: sum over a side of (u − q)^j [...], from its power sums S (k, K)."""
+        neg = [np.ones_like(q)]
+        for _ in range(1, top):
+            neg.append(neg[-1] * -q)  # (−q)^n
+        return [sum(self.COMB[j, k] * neg[j - k] * S[k] for k in range(j + 1)) for j in range(top)]
+
+    def sse(self, candidates):
+        """Residual sums of squares per candidate top [sample index] of the one-cubic and the
+        two-sided fit; inf where the fitted curve is not highest at the candidate (it must stay
+        below the top over the data)."""
+        q = (np.asarray(candidates, dtype=float) - self.centre) / self.scale
+        i = np.searchsorted(self.u, q, side="left")  # left side: u < q
+        SL, SR = self.P[:, i], self.P[:, -1:] - self.P[:, i]
+        QL, QR = self.Q[:, i], self.Q[:, -1:] - self.Q[:, i]
+        ML, MR = self._moments(SL, q, 7), self._moments(SR, q, 7)
+        NL, NR = self._moments(QL, q, 4), self._moments(QR, q, 4)
+        first, last = self.u[0] - q, self.u[-1] - q
+        return (self._solve(q, [a + b for a, b in zip(ML, MR)], None, [a + b for a, b in zip(NL, NR)], None,
+                            first, last),
+                self._solve(q, ML, MR, NL, NR, first, last))
+
+    def _solve(self, q, ML, MR, NL, NR, first, last):
+        """SSE of the one-cubic fit (MR None: ML, NL hold both sides) or the two-sided fit."""
+        two_sided = MR is not None
+        K = q.size
+        n0 = np.full(K, float(self.m))
+        sy = NL[0] + NR[0] if two_sided else NL[0]
+        zero = np.zeros(K)
+        if two_sided:
+            A = np.stack([np.stack([n0, ML[2], ML[3], MR[2], MR[3]], -1),
+                          np.stack([ML[2], ML[4], ML[5], zero, zero], -1),
+                          np.stack([ML[3], ML[5], ML[6], zero, zero], -1),
+                          np.stack([MR[2], zero, zero, MR[4], MR[5]], -1),
+                          np.stack([MR[3], zero, zero, MR[5], MR[6]], -1)], 1)
+            b = np.stack([sy, NL[2], NL[3], NR[2], NR[3]], -1)
+        else:
+            Mt, Nt = ML, NL
+            A = np.stack([np.stack([n0, Mt[2], Mt[3]], -1), np.stack([Mt[2], Mt[4], Mt[5]], -1),
+                          np.stack([Mt[3], Mt[5], Mt[6]], -1)], 1)
+            b = np.stack([sy, Nt[2], Nt[3]], -1)
+        k = b.shape[1]
+        beta = np.linalg.solve(A + 1e-12 * np.eye(k), b[:, :, None])[:, :, 0]
+        sse = self.yy - np.einsum("ki,ki->k", beta, b)
+        a1, b1 = beta[:, 1], beta[:, 2]
+        a2, b2 = (beta[:, 3], beta[:, 4]) if two_sided else (a1, b1)
+        # The fitted curve τ²·(a + bτ) stays below the top when the linear factor is <= 0 at
+        # both ends of each side.
+        below_left = (a1 <= 0) & (a1 + b1 * first <= 0)
+        below_right = (a2 <= 0) & (a2 + b2 * last <= 0)
+        return np.where(below_left & below_right, sse, np.inf)
+
+    def search(self, bounds):
+        """Best top within ``bounds`` [sample index] of each model, one-cubic and two-sided:
+        (p, SSE), or None when no candidate is a top. Every 4th sample, then quarter samples."""
+        grid = np.arange(np.ceil(bounds[0]), bounds[1] + 1e-9, 4.0)
+        if grid.size == 0:
+            return None, None
+        out = []
+        for k, sse in enumerate(self.sse(grid)):
+            if not np.isfinite(sse).any():
+                out.append(None)
+                continue
+            p = grid[np.argmin(sse)]
+            fine = np.clip(np.arange(p - 4.0, p + 4.0 + 1e-9, 0.25), *bounds)
+            sse = self.sse(fine)[k]
+            j = int(np.argmin(sse))
+            out.append((float(fine[j]), float(sse[j])) if np.isfinite(sse[j]) else None)
+        return tuple(out)
 
 
 def closing_end(T, M, S, r: int, settings, fs: float):
@@ -69,32 +229,6 @@ def closing_end(T, M, S, r: int, settings, fs: float):
     return float(te), True
 
 
-def _fit_peak(T, M, p0: int, half: int):
-    """Maximum of a cubic least-squares fit to the travel within ±``half`` samples of ``p0``,
-    re-centred once on the result. Returns (fractional index, fit succeeded)."""
-    ok = False
-    peak = float(p0)
-    for _ in range(3):
-        lo, hi = max(0, p0 - half), min(T.size, p0 + half + 1)
-        keep = M[lo:hi]
-        if keep.sum() < 16:
-            return peak, ok
-        x = (np.arange(lo, hi)[keep] - p0) / half
-        c = np.polynomial.polynomial.polyfit(x, T[lo:hi][keep], 3)
-        roots = np.roots([3 * c[3], 2 * c[2], c[1]]) if abs(c[3]) > 1e-12 else (
-            np.array([-c[1] / (2 * c[2])]) if c[2] else np.empty(0))
-        roots = [float(z.real) for z in np.atleast_1d(roots)
-                 if abs(z.imag) < 1e-12 and abs(z.real) <= 1.0 and 2 * c[2] + 6 * c[3] * z.real < 0]
-        if not roots:
-            return peak, ok
-        x_peak = min(roots, key=abs)
-        peak, ok = p0 + x_peak * half, True
-        if abs(x_peak * half) < 1.0:
-            break
-        p0 = int(round(peak))
-    return peak, ok
-
-
 def _tangent_fit_sse(t: np.ndarray, y: np.ndarray, candidates: np.ndarray) -> np.ndarray:
     """Residual sum of squares of y ≈ a·u² + b·u³, u = max(t_e − t, 0), for each candidate t_e.
 
@@ -111,3 +245,48 @@ def _tangent_fit_sse(t: np.ndarray, y: np.ndarray, candidates: np.ndarray) -> np
     a = (r2 * s55 - r3 * s45) / safe
     b = (s44 * r3 - s45 * r2) / safe
     return float(y @ y) - (a * r2 + b * r3)
+
+
+@dataclass(frozen=True)
+class Settling:
+    """How the travel comes to rest after an operation's end (segment indices, rad).
+
+    ``settled`` is the first index from which the travel stays within ``settle_fraction`` of
+    the stroke for ``rest_s`` (``found`` False: not within the data, or a new operation
+    started first; ``settled`` is then where the search stopped). ``rest`` is the level there
+    and ``swing`` the largest distance from it between the end and ``settled``: the overtravel
+    and any rebound swinging past rest.
+    """
+
+    settled: int
+    rest: float
+    swing: float
+    found: bool
+
+
+def settling(S, end: int, reach: float, settings, fs: float, limit: int) -> Settling:
+    """Find where the smoothed travel ``S`` settles after ``end``, searching up to ``limit``.
+
+    The settling stays within ``reach`` [rad] of the end level; leaving it is a new operation,
+    which stops the search.
+    """
+    s = settings
+    settle_n = max(int(round(s.rest_s * fs)), 1)
+    tol = s.settle_fraction * s.stroke_rad
+    end = min(max(end, 0), S.size - 1)
+    out = np.flatnonzero(np.abs(S[end:limit] - S[end]) > reach)
+    stop = end + int(out[0]) if out.size else min(limit, S.size)
+    seg = S[end:stop]
+    found = False
+    settled = stop
+    if seg.size > settle_n:
+        # Range of the travel over the settle_s that follows each sample.
+        shift = -(settle_n // 2)
+        spread = maximum_filter1d(seg, settle_n, origin=shift) - minimum_filter1d(seg, settle_n, origin=shift)
+        calm = np.flatnonzero(spread[:seg.size - settle_n + 1] < tol)
+        if calm.size:
+            settled, found = end + int(calm[0]), True
+    tail = S[max(settled - settle_n, end):settled + settle_n] if not found else S[settled:settled + settle_n]
+    rest = float(np.median(tail)) if tail.size else float(S[end])
+    swing = float(np.max(np.abs(S[end:settled + 1] - rest))) if settled >= end else 0.0
+    return Settling(settled, rest, swing, found)

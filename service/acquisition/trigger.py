@@ -24,7 +24,7 @@ from drivers.interface import SampleBlock
 
 from drivers.capture import Capture
 
-from .operation_end import closing_end, moving_average, opening_end
+from .operation_end import closing_end, moving_average, opening_end, settling
 from .sample_ring import SampleRing
 
 OPEN, CLOSE = "open", "close"
@@ -64,8 +64,14 @@ class TriggerSettings:
         Travel within this fraction of the stroke from its far end counts as arriving [-].
     settle_s, settle_fraction : float
         Settled when the travel changes less than ``settle_fraction`` of the stroke over ``settle_s``.
+    rest_s : float
+        At rest after an operation when the travel stays within ``settle_fraction`` of the stroke
+        for ``rest_s`` (about one period of a rebound ringing about rest) [s].
     peak_half_window_s : float
         Half width of the opening peak fit [s].
+    peak_fit_drop_fraction : float
+        Each side of the opening peak fit ends where the travel has fallen this fraction of the
+        stroke below the top (or at the half width) [-].
     closing_fit_fraction : float
         The closing end fit uses the last part of the motion, this fraction of the stroke [-].
     rearm_s : float
@@ -87,7 +93,9 @@ class TriggerSettings:
     end_band_fraction: float = 0.1
     settle_s: float = 0.005
     settle_fraction: float = 0.01
+    rest_s: float = 0.015
     peak_half_window_s: float = 0.006
+    peak_fit_drop_fraction: float = 0.01
     closing_fit_fraction: float = 0.15
     rearm_s: float = 0.005
     vibration_full_scale_g: float = 1000.0
@@ -95,7 +103,7 @@ class TriggerSettings:
 
     def __post_init__(self):
         for name in ("stroke_rad", "shock_threshold_g", "pre_trigger_s", "confirm_s",
-                     "max_operation_s", "smoothing_s", "settle_s", "peak_half_window_s"):
+                     "max_operation_s", "smoothing_s", "settle_s", "rest_s", "peak_half_window_s"):
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):
                 raise ValueError(f"trigger setting {name} must be a positive number, got {value}")
@@ -117,7 +125,7 @@ class TriggerSettings:
     @property
     def horizon_s(self) -> float:
         """Data needed after a shock before it is judged [s]."""
-        return self.max_operation_s + self.settle_s + self.post_s + self.peak_half_window_s
+        return self.max_operation_s + max(self.settle_s, self.rest_s) + self.post_s + self.peak_half_window_s
 
 
 @dataclass(frozen=True)
@@ -187,6 +195,7 @@ class TriggerDetector:
         self._scan = 0
         self._pending: int | None = None
         self._gaps: list[tuple[int, int]] = []  # (first missing index, count) still in the ring
+        self._settling: tuple | None = None  # last opening's (settled index, rest, swing)
 
     def _n(self, seconds: float) -> int:
         return int(round(seconds * self.fs))
@@ -209,7 +218,7 @@ class TriggerDetector:
             if self._expected is not None:
                 out += self.flush()
             self.ring.reset(first)
-            self._scan, self._pending, self._gaps = first, None, []
+            self._scan, self._pending, self._gaps, self._settling = first, None, [], None
         elif first > self._expected:
             self._gaps.append((self._expected, first - self._expected))
             out += self._skip(first - self._expected)
@@ -280,8 +289,13 @@ class TriggerDetector:
         thr_motion = s.motion_fraction * s.stroke_rad
         before = slice(max(0, k - n(s.baseline_s)), k)
         baseline = float(np.median(T[before][M[before]])) if M[before].any() else float(T[k])
+        threshold = thr_motion
+        if self._settling is not None and shock < self._settling[0]:
+            # The previous opening is still settling: its swing about rest is no operation.
+            _, baseline, swing = self._settling
+            threshold = thr_motion + swing
         dev = S[k:k + n(s.confirm_s)] - baseline
-        moved = np.flatnonzero(np.abs(dev) > thr_motion)
+        moved = np.flatnonzero(np.abs(dev) > threshold)
         hits = np.flatnonzero((np.abs(V[k:]) >= s.shock_threshold_g) & M[k:]) + k
         if moved.size == 0:  # a lone shock: skip past its ringing
             return None, seg0 + _cluster_end(hits, n(s.shock_cluster_gap_s))
@@ -297,7 +311,6 @@ class TriggerDetector:
         if arrived.size == 0:
             flags.append(END_NOT_REACHED)
             end = float(c + np.argmax(direction * S[c:])) if S.size > c else float(c)
-            level = float(S[int(end)])
         else:
             r = c + int(arrived[0])
             if direction > 0:
@@ -306,10 +319,11 @@ class TriggerDetector:
                 end, ok = closing_end(T, M, S, r, s, self.fs)
             if not ok:
                 flags.append(PEAK_FIT_FAILED)
-            level = float(S[min(int(round(end)), S.size - 1)])
-        stop, cut = self._capture_stop(S, int(np.ceil(end)), level, final)
+        stop, cut, settle = self._capture_stop(S, int(np.ceil(end)), baseline, direction)
         if cut:
             flags.append(NEXT_OPERATION)
+        if operation == OPEN:  # shocks while it settles are judged against its swing
+            self._settling = (seg0 + settle.settled, settle.rest, settle.swing)
         start = max(0, k - self.pre_n)
         if k < self.pre_n // 2:  # a little less than asked is normal for recorded files
             flags.append(SHORT_PRETRIGGER)
@@ -326,24 +340,31 @@ class TriggerDetector:
                                      self.fs, tuple(flags), capture)
         return detected, seg0 + int(np.ceil(end)) + n(s.rearm_s)
 
-    def _capture_stop(self, S, end: int, level: float, final: bool):
-        """Segment index one past the capture's last sample, and whether the next operation cut it."""
+    def _capture_stop(self, S, end: int, baseline: float, direction: float):
+        """Segment index one past the capture's last sample, whether the next operation cut it,
+        and how the travel settled (``operation_end.Settling``)."""
         s = self.settings
         n = self._n
-        settle_n = n(s.settle_s)
-        tol = s.settle_fraction * s.stroke_rad
-        end = min(max(end, 0), S.size)
-        change = np.abs(S[end:S.size - settle_n] - S[end + settle_n:]) if S.size > end + settle_n else np.empty(0)
-        calm = np.flatnonzero(change < tol)
-        settled = end + int(calm[0]) if calm.size else end
-        stop = settled + n(s.post_s)
         thr_motion = s.motion_fraction * s.stroke_rad
-        away = np.flatnonzero(np.abs(S[end + n(s.rearm_s):stop] - level) > thr_motion)
+        end = min(max(end, 0), S.size - 1)
+        level = float(S[end])
+        # The settling swings about the end position by at most the overtravel: twice the
+        # distance from the end level to the nominal rest, plus the motion threshold.
+        reach = 2.0 * abs(level - (baseline + direction * s.stroke_rad)) + thr_motion
+        st = settling(S, end, reach, s, self.fs, limit=S.size - n(s.post_s))
+        stop = (st.settled if st.found else end) + n(s.post_s)
+        # A new operation: leaving the settling's reach before it settles, or the rest level after.
+        i0 = end + n(s.rearm_s)
+        idx = np.arange(i0, min(stop, S.size))
+        far = np.where(idx < st.settled, np.abs(S[i0:i0 + idx.size] - level) > reach,
+                       np.abs(S[i0:i0 + idx.size] - st.rest) > thr_motion)
+        away = np.flatnonzero(far)
         if away.size:  # the next operation has started: end where the travel left its rest level
-            leave = end + n(s.rearm_s) + int(away[0])
-            quiet = np.flatnonzero(np.abs(S[end:leave] - level) < 0.1 * thr_motion)
-            return end + (int(quiet[-1]) + 1 if quiet.size else leave - end), True
-        return stop, False
+            leave = i0 + int(away[0])
+            ref = st.rest if st.found and leave >= st.settled else level
+            quiet = np.flatnonzero(np.abs(S[end:leave] - ref) < 0.1 * thr_motion)
+            return end + (int(quiet[-1]) + 1 if quiet.size else leave - end), True, st
+        return stop, False, st
 
     def _capture(self, first, T, V, M, operation, shock, end, flags) -> Capture:
         travel = T.copy()
