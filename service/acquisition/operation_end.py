@@ -113,23 +113,30 @@ class _PeakFit:
     moments about a candidate by the binomial expansion, so no candidate touches the samples.
     """
 
-    COMB = _binomial()
+    COMB = _binomial()  # C(j, k), zero above the diagonal
+    LAG = np.maximum(np.subtract.outer(np.arange(7), np.arange(7)), 0)  # j − k
 
     def __init__(self, t, y, *, centre: float, scale: float):
         self.centre, self.scale = centre, scale
         self.u = (t - centre) / scale
         self.m = self.u.size
-        powers = self.u[None, :] ** np.arange(7)[:, None]
+        powers = np.empty((7, self.m))
+        powers[0] = 1.0
+        for k in range(1, 7):
+            np.multiply(powers[k - 1], self.u, out=powers[k])
         self.P = np.concatenate([np.zeros((7, 1)), np.cumsum(powers, axis=1)], axis=1)
         self.Q = np.concatenate([np.zeros((4, 1)), np.cumsum(powers[:4] * y, axis=1)], axis=1)
         self.yy = float(y @ y)
 
     def _moments(self, S, q, top):
-        """Moments about q: sum over a side of (u − q)^j [...], from its power sums S (k, K)."""
-        neg = [np.ones_like(q)]
-        for _ in range(1, top):
-            neg.append(neg[-1] * -q)  # (−q)^n
-        return [sum(self.COMB[j, k] * neg[j - k] * S[k] for k in range(j + 1)) for j in range(top)]
+        """Moments about q: sum over a side of (u − q)^j [...], from its power sums S (k, K),
+        as rows j < ``top``: sum over k of C(j, k)·(−q)^(j−k)·S[k]."""
+        neg = np.empty((top, q.size))
+        neg[0] = 1.0
+        for n in range(1, top):
+            np.multiply(neg[n - 1], -q, out=neg[n])
+        B = self.COMB[:top, :top, None] * neg[self.LAG[:top, :top]]  # (j, k, K)
+        return np.einsum("jkK,kK->jK", B, S[:top])
 
     def sse(self, candidates):
         """Residual sums of squares per candidate top [sample index] of the one-cubic and the
@@ -142,7 +149,7 @@ class _PeakFit:
         ML, MR = self._moments(SL, q, 7), self._moments(SR, q, 7)
         NL, NR = self._moments(QL, q, 4), self._moments(QR, q, 4)
         first, last = self.u[0] - q, self.u[-1] - q
-        return (self._solve(q, [a + b for a, b in zip(ML, MR)], None, [a + b for a, b in zip(NL, NR)], None,
+        return (self._solve(q, ML + MR, None, NL + NR, None,
                             first, last),
                 self._solve(q, ML, MR, NL, NR, first, last))
 
@@ -276,16 +283,18 @@ def settling(S, end: int, reach: float, settings, fs: float, limit: int) -> Sett
     end = min(max(end, 0), S.size - 1)
     out = np.flatnonzero(np.abs(S[end:limit] - S[end]) > reach)
     stop = end + int(out[0]) if out.size else min(limit, S.size)
-    seg = S[end:stop]
+    # S is smoothed over smoothing_s: every step-th sample keeps its range.
+    step = max(1, int(s.smoothing_s * fs) // 4)
+    seg = S[end:stop:step]
+    w = max(settle_n // step, 1)
     found = False
     settled = stop
-    if seg.size > settle_n:
-        # Range of the travel over the settle_s that follows each sample.
-        shift = -(settle_n // 2)
-        spread = maximum_filter1d(seg, settle_n, origin=shift) - minimum_filter1d(seg, settle_n, origin=shift)
-        calm = np.flatnonzero(spread[:seg.size - settle_n + 1] < tol)
+    if seg.size > w:
+        # Range of the travel over the rest_s that follows each sample.
+        spread = maximum_filter1d(seg, w, origin=-(w // 2)) - minimum_filter1d(seg, w, origin=-(w // 2))
+        calm = np.flatnonzero(spread[:seg.size - w + 1] < tol)
         if calm.size:
-            settled, found = end + int(calm[0]), True
+            settled, found = end + int(calm[0]) * step, True
     tail = S[max(settled - settle_n, end):settled + settle_n] if not found else S[settled:settled + settle_n]
     rest = float(np.median(tail)) if tail.size else float(S[end])
     swing = float(np.max(np.abs(S[end:settled + 1] - rest))) if settled >= end else 0.0
