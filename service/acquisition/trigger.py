@@ -304,6 +304,8 @@ class TriggerDetector:
         operation = OPEN if direction > 0 else CLOSE
         # The latch shock is the last shock cluster that starts before motion is confirmed.
         pre = hits[hits < c]
+        if pre.size == 0:  # already moving at the shock: this shock did not start it
+            return None, seg0 + _cluster_end(hits, n(s.shock_cluster_gap_s))
         breaks = np.flatnonzero(np.diff(pre) > n(s.shock_cluster_gap_s))
         k = int(pre[breaks[-1] + 1]) if breaks.size else int(pre[0])
         flags = []
