@@ -87,7 +87,7 @@ def _two_sided_peak(T, M, wide, p0: int, half: int, drop: float, fs: float):
         if ok and model != chosen:
             return peak, ok  # the re-centred window changed the verdict: keep the first answer
         chosen = model
-        moved = abs(p - p0) >= 1.0
+        moved = abs(p - p0) > half / 16  # re-centre only when the window was clearly off
         peak, ok, p0 = float(p), True, int(round(p))
         if not moved:
             break
@@ -106,11 +106,12 @@ def _binomial():
     return np.array([[float(comb(j, k)) if k <= j else 0.0 for k in range(7)] for j in range(7)])
 
 
-class _PeakFit:
-    """Least-squares peak fits of samples (t, y) for many candidate tops at O(1) each.
+class _PowerSums:
+    """Moments of samples (t, y) on either side of many candidate split points at O(1) each.
 
-    Prefix sums of u^k and u^k·y (u = (t − centre)/scale, for conditioning) give every side's
-    moments about a candidate by the binomial expansion, so no candidate touches the samples.
+    Prefix sums of u^k and u^k·y (u = (t − centre)/scale, for conditioning) give each side's
+    sums of (u − q)^j and (u − q)^j·y about a candidate q by the binomial expansion, so no
+    candidate touches the samples.
     """
 
     COMB = _binomial()  # C(j, k), zero above the diagonal
@@ -118,7 +119,7 @@ class _PeakFit:
 
     def __init__(self, t, y, *, centre: float, scale: float):
         self.centre, self.scale = centre, scale
-        self.u = (t - centre) / scale
+        self.u = (np.asarray(t, dtype=float) - centre) / scale
         self.m = self.u.size
         powers = np.empty((7, self.m))
         powers[0] = 1.0
@@ -128,9 +129,8 @@ class _PeakFit:
         self.Q = np.concatenate([np.zeros((4, 1)), np.cumsum(powers[:4] * y, axis=1)], axis=1)
         self.yy = float(y @ y)
 
-    def _moments(self, S, q, top):
-        """Moments about q: sum over a side of (u − q)^j [...], from its power sums S (k, K),
-        as rows j < ``top``: sum over k of C(j, k)·(−q)^(j−k)·S[k]."""
+    def _about(self, S, q, top):
+        """Rows j < ``top`` of sum over k of C(j, k)·(−q)^(j−k)·S[k]: moments about q."""
         neg = np.empty((top, q.size))
         neg[0] = 1.0
         for n in range(1, top):
@@ -138,16 +138,24 @@ class _PeakFit:
         B = self.COMB[:top, :top, None] * neg[self.LAG[:top, :top]]  # (j, k, K)
         return np.einsum("jkK,kK->jK", B, S[:top])
 
+    def sides(self, candidates):
+        """(q, ML, MR, NL, NR): candidates in u, and per side (left: u < q) the sums of
+        (u − q)^j for j ≤ 6 and of (u − q)^j·y for j ≤ 3, shape (j, K)."""
+        q = (np.asarray(candidates, dtype=float) - self.centre) / self.scale
+        i = np.searchsorted(self.u, q, side="left")
+        SL, SR = self.P[:, i], self.P[:, -1:] - self.P[:, i]
+        QL, QR = self.Q[:, i], self.Q[:, -1:] - self.Q[:, i]
+        return q, self._about(SL, q, 7), self._about(SR, q, 7), self._about(QL, q, 4), self._about(QR, q, 4)
+
+
+class _PeakFit(_PowerSums):
+    """Least-squares peak fits of samples (t, y) for many candidate tops at O(1) each."""
+
     def sse(self, candidates):
         """Residual sums of squares per candidate top [sample index] of the one-cubic and the
         two-sided fit; inf where the fitted curve is not highest at the candidate (it must stay
         below the top over the data)."""
-        q = (np.asarray(candidates, dtype=float) - self.centre) / self.scale
-        i = np.searchsorted(self.u, q, side="left")  # left side: u < q
-        SL, SR = self.P[:, i], self.P[:, -1:] - self.P[:, i]
-        QL, QR = self.Q[:, i], self.Q[:, -1:] - self.Q[:, i]
-        ML, MR = self._moments(SL, q, 7), self._moments(SR, q, 7)
-        NL, NR = self._moments(QL, q, 4), self._moments(QR, q, 4)
+        q, ML, MR, NL, NR = self.sides(candidates)
         first, last = self.u[0] - q, self.u[-1] - q
         return (self._solve(q, ML + MR, None, NL + NR, None,
                             first, last),
@@ -226,32 +234,32 @@ def closing_end(T, M, S, r: int, settings, fs: float):
     y = T[i0:i1][keep] - level
     if t.size < 16:
         return float(q), False
-    # Coarse-to-fine search of t_e: 0.25 ms steps on every 4th sample, then finer.
+    # Coarse-to-fine search of t_e: 0.25 ms steps, then finer.
+    fit = _PowerSums(t, y, centre=0.5 * (i0 + i1), scale=max(0.5 * (i1 - i0), 1.0))
     step = max(4.0, round(0.25e-3 * fs))
     grid = np.arange(i0, i1, step)
-    te = grid[np.argmin(_tangent_fit_sse(t[::4], y[::4], grid))]
+    te = grid[np.argmin(_tangent_fit_sse(fit, grid))]
     for half, fine in ((step, step / 8), (step / 8, 0.5)):
         grid = np.arange(te - half, te + half + 1e-9, fine)
-        te = grid[np.argmin(_tangent_fit_sse(t, y, grid))]
+        te = grid[np.argmin(_tangent_fit_sse(fit, grid))]
     return float(te), True
 
 
-def _tangent_fit_sse(t: np.ndarray, y: np.ndarray, candidates: np.ndarray) -> np.ndarray:
+def _tangent_fit_sse(fit: "_PowerSums", candidates: np.ndarray) -> np.ndarray:
     """Residual sum of squares of y ≈ a·u² + b·u³, u = max(t_e − t, 0), for each candidate t_e.
 
     The travel arrives tangentially at the closed level (the cam rise ends with zero slope),
-    hence no constant or linear term.
+    hence no constant or linear term. Only samples before t_e carry the model: the left-side
+    sums of (t − t_e)^j (the sign of the cubic term does not change the residual).
     """
-    u = np.maximum(candidates[:, None] - t[None, :], 0.0) / 128.0  # scaled for conditioning
-    u2 = u * u
-    u3 = u2 * u
-    s44, s45, s55 = (u2 * u2).sum(1), (u2 * u3).sum(1), (u3 * u3).sum(1)
-    r2, r3 = u2 @ y, u3 @ y
+    _, ML, _, NL, _ = fit.sides(candidates)
+    s44, s45, s55 = ML[4], ML[5], ML[6]
+    r2, r3 = NL[2], NL[3]
     det = s44 * s55 - s45 * s45
-    safe = np.where(np.abs(det) > 1e-300, det, np.inf)
+    safe = np.where(np.abs(det) > 1e-12 * np.maximum(s44 * s55, 1e-300), det, np.inf)
     a = (r2 * s55 - r3 * s45) / safe
     b = (s44 * r3 - s45 * r2) / safe
-    return float(y @ y) - (a * r2 + b * r3)
+    return fit.yy - (a * r2 + b * r3)
 
 
 @dataclass(frozen=True)
