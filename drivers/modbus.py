@@ -23,6 +23,7 @@ from pymodbus.exceptions import ModbusException
 from . import modbus_map as mm
 from .errors import CaptureDownloadError
 from .interface import DriverStats, SampleBlock
+from .pymodbus_logging import quiet_pymodbus
 from .scaling import ChannelScaling
 
 log = logging.getLogger("drivers.modbus")
@@ -95,6 +96,7 @@ class ModbusSettings:
 
 def make_client(settings: ModbusSettings):
     """A pymodbus async client without its own retries or reconnects (the driver owns both)."""
+    quiet_pymodbus()
     if settings.transport == "tcp":
         return AsyncModbusTcpClient(settings.host, port=settings.port, timeout=settings.timeout_s,
                                     retries=0, reconnect_delay=0)
