@@ -19,6 +19,8 @@ def register(subparsers) -> None:
     p.add_argument("--workers", type=int, default=None, help="local pool size (default: settings)")
     p.add_argument("--backend", choices=("local", "celery", "inline"), default="local",
                    help="local process pool, Celery workers on the settings' broker, or this process")
+    p.add_argument("--batch-size", type=int, default=None,
+                   help="operations per worker task (default 25); a smaller batch lands more often")
     p.add_argument("--config", default=None, help="settings TOML (default config/default.toml)")
     p.set_defaults(func=cmd_refit)
 
@@ -41,11 +43,13 @@ def cmd_refit(args) -> int:
     from service.storage.db import make_engine, session_factory
 
     from . import pool
-    from .runs import run_refit, start_run
+    from .runs import BATCH_SIZE, run_refit, start_run
 
     since = parse_since(args.since)
     if args.workers is not None and args.workers < 1:
         raise UserError("--workers must be at least 1")
+    if args.batch_size is not None and args.batch_size < 1:
+        raise UserError("--batch-size must be at least 1")
     settings = _settings(args)
     engine = make_engine(settings.sqlalchemy_url)
     Session = session_factory(engine)
@@ -74,7 +78,8 @@ def cmd_refit(args) -> int:
         bar.update(n)
 
     try:
-        run = run_refit(Session, run_id, submit_batches=submit, options=options, on_progress=on_progress)
+        run = run_refit(Session, run_id, submit_batches=submit, options=options, on_progress=on_progress,
+                        batch_size=args.batch_size or BATCH_SIZE)
     except KeyboardInterrupt:
         bar.close()
         print(f"\nrefit run {run_id} interrupted; run the same command again to resume", file=sys.stderr)

@@ -99,7 +99,8 @@ def rebuild_drift(session, *, breaker_ids, options=None) -> None:
 
 
 def run_refit(Session, run_id: int, *, submit_batches: Callable, options=None,
-              on_progress: Callable[[int, int], None] | None = None) -> RefitRunRow:
+              on_progress: Callable[[int, int], None] | None = None,
+              batch_size: int = BATCH_SIZE) -> RefitRunRow:
     """Drive one run to its end (or to an interruption) and return its final row.
 
     ``submit_batches(run_id, batches, report)`` runs the batches on the workers and calls
@@ -109,7 +110,7 @@ def run_refit(Session, run_id: int, *, submit_batches: Callable, options=None,
     with Session() as session, session.begin():
         run = session.get(RefitRunRow, run_id)
         run.status, run.started_at = "running", run.started_at or utcnow()
-        batches = pending_batches(session, run)
+        batches = pending_batches(session, run, batch_size)
         landed = run.done + run.failed
         total = run.total
     if on_progress:
