@@ -38,7 +38,7 @@ def batched_jacobian(residual_rows: Callable, x: np.ndarray, scale: np.ndarray,
     return R[0], J
 
 
-def polish(residual_rows: Callable, x0, lower, upper, scale, *, max_nfev: int = 60,
+def polish(residual_rows: Callable, x0, lower, upper, scale, *, max_nfev: int = 200,
            tol: float = 1e-10) -> Polish:
     """Refine ``x0`` by trust-region least squares (scipy) within physical bounds.
 
@@ -65,7 +65,12 @@ def polish(residual_rows: Callable, x0, lower, upper, scale, *, max_nfev: int = 
     res = least_squares(fun, x0, jac=jac, x_scale=scale, method="lm", xtol=tol, ftol=tol,
                         gtol=tol, max_nfev=max_nfev)
     evaluations = calls["n"] + int(res.njev or 0) * (2 * x0.size + 1)
-    if not (np.all(np.isfinite(res.x)) and np.all(res.x >= lower) and np.all(res.x <= upper)):
+    inside = np.all(np.isfinite(res.x)) and np.all(res.x >= lower) and np.all(res.x <= upper)
+    if not inside or not res.success:
+        # Left the bounds, or still walking when the budget ran out: the bounded solver goes on
+        # from the better of the two points.
+        if inside and np.sum(res.fun ** 2) < np.sum(fun(x0) ** 2):
+            x0 = np.clip(res.x, lower + 1e-12 * scale, upper - 1e-12 * scale)
         calls["n"] = 0
         res = least_squares(fun, x0, jac=jac, bounds=(lower, upper), x_scale=scale, method="trf",
                             xtol=tol, ftol=tol, gtol=tol, max_nfev=max_nfev)
