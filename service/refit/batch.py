@@ -25,9 +25,11 @@ _REASONS_KEPT = 20  # failure reasons kept on the run row
 def refit_batch(run_id: int, operation_ids: list[int], options: JobOptions | dict) -> dict:
     """Re-fit ``operation_ids`` (one breaker) for refit run ``run_id``.
 
-    Returns ``{"done", "failed", "skipped", "fit_s"}``: ``skipped`` counts operations this run
-    had already refitted. A failed re-fit keeps the current result (and says why on the run).
+    Returns ``{"done", "failed", "skipped", "fit_s", "cpu_s"}``: ``skipped`` counts operations
+    this run had already refitted; ``cpu_s`` is this process's CPU time for the whole batch. A
+    failed re-fit keeps the current result (and says why on the run).
     """
+    cpu0 = time.process_time()
     if isinstance(options, dict):
         options = JobOptions(**options)
     Session = session_factory(cached_engine(options.database_url))
@@ -38,7 +40,8 @@ def refit_batch(run_id: int, operation_ids: list[int], options: JobOptions | dic
             select(FitRow).where(FitRow.operation_id.in_(operation_ids)))}
         todo = [op for op in ops if op.id in fits and fits[op.id].refit_run_id != run_id]
         if not todo:
-            return {"done": 0, "failed": 0, "skipped": len(operation_ids), "fit_s": 0.0}
+            return {"done": 0, "failed": 0, "skipped": len(operation_ids), "fit_s": 0.0,
+                    "cpu_s": time.process_time() - cpu0}
         breaker_id = todo[0].breaker_id
         breaker = crud.breaker_model(session.get(BreakerRow, breaker_id))
         first = todo[0].occurred_at
@@ -71,7 +74,7 @@ def refit_batch(run_id: int, operation_ids: list[int], options: JobOptions | dic
     done, failed, skipped = _store(Session, run_id, ops_by_id={op.id: op for op in todo},
                                    results=results)
     return {"done": done, "failed": failed, "skipped": skipped + len(operation_ids) - len(todo),
-            "fit_s": fit_s}
+            "fit_s": fit_s, "cpu_s": time.process_time() - cpu0}
 
 
 def _opening_factors(session, breaker_id: int, until) -> tuple[list, list]:

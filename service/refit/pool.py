@@ -19,8 +19,11 @@ def _warm() -> None:
         pass
 
 
-def local_pool(options: JobOptions, workers: int):
-    """Batches on a spawned process pool, at most ``2 × workers`` in flight."""
+def local_pool(options: JobOptions, workers: int, on_batch=None):
+    """Batches on a spawned process pool, at most ``2 × workers`` in flight.
+
+    ``on_batch(result)`` sees each batch's result dict (benchmarks read its ``cpu_s``).
+    """
     def submit(run_id, batches, report):
         opts = options.to_dict()
         pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
@@ -33,6 +36,8 @@ def local_pool(options: JobOptions, workers: int):
                 finished, pending = wait(pending, return_when=FIRST_COMPLETED)
                 for fut in finished:
                     res = fut.result()
+                    if on_batch is not None:
+                        on_batch(res)
                     report(res["done"] + res["failed"])
         except BaseException:
             pool.shutdown(wait=False, cancel_futures=True)
