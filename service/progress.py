@@ -13,10 +13,23 @@ def progress(total: int | None = None, *, desc: str = "", unit: str = "it", stre
     """
     from tqdm import tqdm
 
+    class Bar(tqdm):
+        monitor_interval = 0  # no monitor thread: the bar refreshes on update
+
     stream = stream if stream is not None else sys.stderr
     tty = bool(getattr(stream, "isatty", lambda: False)())
-    return tqdm(total=total, desc=desc, unit=unit, file=stream, disable=not tty, initial=initial,
-                dynamic_ncols=True, smoothing=0.1)
+    return Bar(total=total, desc=desc, unit=unit, file=stream, disable=not tty, initial=initial,
+               ncols=_columns(stream) if tty else None, smoothing=0.1)
+
+
+def _columns(stream) -> int:
+    """The terminal's width; 100 when it reports none (a fresh pty)."""
+    import os
+
+    try:
+        return os.get_terminal_size(stream.fileno()).columns or 100
+    except (OSError, ValueError, AttributeError):
+        return 100
 
 
 def track(iterable, *, total: int | None = None, desc: str = "", unit: str = "it", stream=None):

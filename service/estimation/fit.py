@@ -59,7 +59,11 @@ class FitSettings:
     rules : cmaes.StoppingRules
     noise_floor_blocks : float
         CMA-ES stops early once the block means' residual sum of squares is within this many
-        times its expectation at the true parameters (one noise variance per block).
+        times its expectation at the true parameters (one noise variance per block): the warm
+        search's early stop.
+    search_floor_blocks : float
+        The same, looser, for the cold search's opening stage 1 and closing search, which a
+        least-squares step then finishes (opening stage 2 keeps ``noise_floor_blocks``).
     fallback_factor : float
         A warm start whose polished RMSE stays above this factor of the noise floor (or of the
         prior's own ratio) is discarded for the full cold search.
@@ -78,6 +82,7 @@ class FitSettings:
     polish: bool = True
     rules: cmaes.StoppingRules = field(default_factory=cmaes.StoppingRules)
     noise_floor_blocks: float = 2.0
+    search_floor_blocks: float = 20.0
     fallback_factor: float = 1.5
     random_start: bool = False
 
@@ -202,7 +207,7 @@ def _fit_opening(window: FitWindow, breaker: Breaker, seed, settings, evaluator,
         raise FitError("too few samples before buffer engagement to fit the opening spring")
     full = OpeningCurves(breaker, grid)
     ss_full = _within_ss(grid, window)
-    target = _floor_target(grid, window, settings)
+    target = _floor_target(grid, window, settings.noise_floor_blocks)
     names = list(OPENING_PARAMETERS) + ["tau"]
     scale = np.array([3000.0, 5000.0, 30.0, 5000.0, 1e-3])
     lower = np.array([1.0, 1.0, 0.0, 0.0, 0.0])
@@ -225,7 +230,16 @@ def _fit_opening(window: FitWindow, breaker: Breaker, seed, settings, evaluator,
     ss_pre = _within_ss(pre.grid, window)
     x1, space1, ev1, ra1, st1, hit1 = _search(
         lambda X: weighted_rmse(pre.pre_buffer(X), pre.grid, ss_pre), space1, seed, settings,
-        evaluator, target=_floor_target(pre.grid, window, settings))
+        evaluator, target=_floor_target(pre.grid, window, settings.search_floor_blocks))
+    if settings.polish and not hit1:
+        # CMA-ES stopped in the basin; the least-squares step finds its bottom, so stage 2 fits
+        # DO, EO against the right AO, BO (as a fully converged stage 1 would give).
+        k = [0, 1, 4]
+        pre_rows = lambda X: pre.grid.weight[None, :] * (pre.pre_buffer(X) - pre.grid.y[None, :])  # noqa: E731
+        pol = polish(pre_rows, x1, lower[k], upper[k], scale[k], max_nfev=30)
+        ev1 += pol.evaluations
+        if pol.success and np.sum(pre_rows(pol.x[None, :]) ** 2) <= np.sum(pre_rows(x1[None, :]) ** 2):
+            x1 = pol.x
     AO, BO, tau = x1
 
     def score2(X):
@@ -233,6 +247,7 @@ def _fit_opening(window: FitWindow, breaker: Breaker, seed, settings, evaluator,
         return weighted_rmse(full.full(full_X), grid, ss_full)
 
     space2 = ParameterSpace.from_ranges(("DO", "EO"), ranges)
+    # Stage 2 keeps the tight target: it decides whether EO's range must move (steps 5–6).
     x2, space2, ev2, ra2, st2, hit2 = _search(score2, space2, seed + 1000, settings, evaluator,
                                               fixed=(), target=target)
     x = np.array([AO, BO, x2[0], x2[1], tau])
@@ -250,7 +265,7 @@ def _fit_closing(window: FitWindow, breaker: Breaker, seed, settings, evaluator,
                            dt_max=settings.search_step_close)
     exact = ClosingCurves(breaker, grid, dc)
     ss = _within_ss(search.grid, window)
-    target = _floor_target(search.grid, window, settings)
+    target = _floor_target(search.grid, window, settings.noise_floor_blocks)
     names = list(CLOSING_PARAMETERS) + ["tau"]
     scale = np.array([20000.0, 2.0, 10000.0, 1e-3])
     lower = np.array([1.0, 1e-3, 0.0, 0.0])
@@ -271,7 +286,9 @@ def _fit_closing(window: FitWindow, breaker: Breaker, seed, settings, evaluator,
                        polished=polished)
     ranges = dict(breaker.ranges, tau=(0.0, settings.tau_max))
     space = ParameterSpace.from_ranges(("AC", "BC", "CC", "tau"), ranges)
-    x, space, ev, ra, st, hit = _search(score, space, seed, settings, evaluator, target=target)
+    x, space, ev, ra, st, hit = _search(
+        score, space, seed, settings, evaluator,
+        target=_floor_target(search.grid, window, settings.search_floor_blocks))
     return _finish("close", names, x, residual_rows, scale, lower, upper, window, settings,
                    ev, ra, st, hit, space.as_dict())
 
@@ -359,15 +376,15 @@ def _finish(operation, names, x, residual_rows, scale, lower, upper, window, set
         readaptations=readaptations, stages=stages, warnings=warnings, start=start)
 
 
-def _floor_target(grid, window: FitWindow, settings: FitSettings) -> float:
+def _floor_target(grid, window: FitWindow, blocks: float) -> float:
     """The grid RMSE [rad] that counts as "at the noise floor" for the early stop.
 
     At the true parameters each block mean misses the model by noise alone, so the blocks add
     about one noise variance each to the within-block scatter; the target allows
-    ``noise_floor_blocks`` of them.
+    ``blocks`` of them.
     """
     n = float(np.sum(grid.count))
-    excess = settings.noise_floor_blocks * grid.y.size * window.noise_rad**2
+    excess = blocks * grid.y.size * window.noise_rad**2
     return float(np.sqrt((_within_ss(grid, window) + excess) / n))
 
 

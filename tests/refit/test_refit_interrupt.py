@@ -73,6 +73,7 @@ def test_sigint_then_sigkill_then_resume_lands_every_result_exactly_once(db_url,
         out, err = proc.communicate(timeout=300)
         assert proc.returncode == 0, (out, err)
         assert f"resuming refit run {run.id}" in out
+        assert "fit/s" not in err and "%|" not in err  # no progress bar when not on a terminal
         assert_one_current_result_each(Session, ids, run.id)
     finally:
         engine.dispose()
