@@ -13,6 +13,22 @@ def test_quiet_when_not_a_tty():
     assert out.getvalue() == ""
 
 
+def _drain(fd) -> str:
+    """Everything written to the pty so far (the writes may arrive in several reads)."""
+    import select
+
+    chunks = []
+    while select.select([fd], [], [], 0.5)[0]:
+        try:
+            data = os.read(fd, 65536)
+        except OSError:
+            break
+        if not data:
+            break
+        chunks.append(data)
+    return b"".join(chunks).decode(errors="replace")
+
+
 def test_rate_and_time_left_on_a_terminal():
     master, slave = pty.openpty()
     try:
@@ -21,7 +37,7 @@ def test_rate_and_time_left_on_a_terminal():
             bar.update(4)
             bar.refresh()
             bar.close()
-        text = os.read(master, 65536).decode(errors="replace")
+        text = _drain(master)
     finally:
         os.close(master)
         os.close(slave)
