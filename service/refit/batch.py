@@ -104,32 +104,40 @@ def _dc_before(openings, t, breaker) -> tuple[float, str]:
 
 
 def _store(Session, run_id: int, *, ops_by_id: dict, results: dict) -> tuple[int, int, int]:
-    """One transaction: archive the current results, write the new ones, count them on the run."""
+    """One transaction: archive the current results, write the new ones, count them on the run.
+
+    Bulk statements (one INSERT of the archived versions, one executemany UPDATE of the fits,
+    one DELETE and one INSERT of the parameter values), not a round trip per fit.
+    """
     now = utcnow()
     with Session() as session, session.begin():
         # Take the write lock first (SQLite), so no other writer slips in between read and write.
         session.execute(update(RefitRunRow).where(RefitRunRow.id == run_id)
                         .values(status=RefitRunRow.status))
-        rows = list(session.scalars(select(FitRow).where(FitRow.operation_id.in_(list(results)))
-                                    .with_for_update()))
+        current = session.execute(
+            select(FitRow.id, FitRow.operation_id, FitRow.refit_run_id, FitRow.version, FitRow.status,
+                   FitRow.failure_reason, FitRow.parameters, FitRow.ci95, FitRow.rmse_rad, FitRow.result,
+                   FitRow.finished_at)
+            .where(FitRow.operation_id.in_(list(results))).with_for_update()).all()
         done = failed = skipped = 0
-        values, reasons, refitted_ids = [], [], []
-        for fit in rows:
+        archived, updates, values, reasons, refitted_ids = [], [], [], [], []
+        for fit in current:
             if fit.refit_run_id == run_id:  # another attempt of this batch landed it
                 skipped += 1
                 continue
             result, curve, reason = results[fit.operation_id]
-            fit.refit_run_id = run_id
             if reason is not None:
                 failed += 1
                 reasons.append(f"operation {fit.operation_id}: {reason}")
+                updates.append({"id": fit.id, "refit_run_id": run_id})
                 continue
-            session.add(FitVersionRow(fit_id=fit.id, operation_id=fit.operation_id, version=fit.version,
-                                      status=fit.status, failure_reason=fit.failure_reason,
-                                      parameters=fit.parameters, ci95=fit.ci95, rmse_rad=fit.rmse_rad,
-                                      result=fit.result, finished_at=fit.finished_at,
-                                      superseded_at=now, superseded_by_run=run_id))
-            _apply(fit, result, curve, now)
+            archived.append(dict(fit_id=fit.id, operation_id=fit.operation_id, version=fit.version,
+                                 status=fit.status, failure_reason=fit.failure_reason,
+                                 parameters=fit.parameters, ci95=fit.ci95, rmse_rad=fit.rmse_rad,
+                                 result=fit.result, finished_at=fit.finished_at, superseded_at=now,
+                                 superseded_by_run=run_id))
+            updates.append({"id": fit.id, "refit_run_id": run_id, "version": fit.version + 1,
+                            **_new_values(result, curve, now)})
             refitted_ids.append(fit.id)
             op = ops_by_id[fit.operation_id]
             ci = result.get("ci95") or {}
@@ -142,7 +150,12 @@ def _store(Session, run_id: int, *, ops_by_id: dict, results: dict) -> tuple[int
                                    identifiable=bool(result.get("identifiable", True)),
                                    occurred_at=op.occurred_at))
             done += 1
-        session.flush()
+        if archived:
+            session.execute(insert(FitVersionRow), archived)
+        # Failures only mark the row; successes replace every result field.
+        for group in ([u for u in updates if "version" in u], [u for u in updates if "version" not in u]):
+            if group:
+                session.execute(update(FitRow), group)
         if refitted_ids:
             session.execute(delete(ParameterValueRow).where(ParameterValueRow.fit_id.in_(refitted_ids)))
         if values:
@@ -156,18 +169,15 @@ def _store(Session, run_id: int, *, ops_by_id: dict, results: dict) -> tuple[int
     return done, failed, skipped
 
 
-def _apply(fit: FitRow, result: dict, curve, now) -> None:
-    """The new result into the fits row (the same fields ``crud.store_fit_result`` writes)."""
+def _new_values(result: dict, curve, now) -> dict:
+    """The fits row's result columns (the same fields ``crud.store_fit_result`` writes)."""
     window = result.get("window_s") or (None, None)
-    fit.status, fit.failure_reason = "done", None
-    fit.parameters, fit.ci95, fit.stderr = result.get("parameters"), result.get("ci95"), result.get("stderr")
-    fit.rmse_rad, fit.fitness = result.get("rmse_rad"), result.get("fitness")
-    fit.window_start_s, fit.window_end_s = window[0], window[1]
-    fit.onset_delay_s, fit.noise_rad = result.get("onset_delay_s"), result.get("noise_rad")
-    fit.evaluations, fit.runtime_s = result.get("evaluations"), result.get("runtime_s")
-    fit.identifiable, fit.condition_number = result.get("identifiable"), result.get("condition_number")
-    fit.dc_used, fit.dc_source = result.get("dc_used"), result.get("dc_source")
-    fit.warnings = list(result.get("warnings") or [])
-    fit.characteristics, fit.curve, fit.result = result.get("characteristics"), curve, result
-    fit.finished_at = now
-    fit.version += 1
+    return dict(status="done", failure_reason=None, parameters=result.get("parameters"),
+                ci95=result.get("ci95"), stderr=result.get("stderr"), rmse_rad=result.get("rmse_rad"),
+                fitness=result.get("fitness"), window_start_s=window[0], window_end_s=window[1],
+                onset_delay_s=result.get("onset_delay_s"), noise_rad=result.get("noise_rad"),
+                evaluations=result.get("evaluations"), runtime_s=result.get("runtime_s"),
+                identifiable=result.get("identifiable"), condition_number=result.get("condition_number"),
+                dc_used=result.get("dc_used"), dc_source=result.get("dc_source"),
+                warnings=list(result.get("warnings") or []), characteristics=result.get("characteristics"),
+                curve=curve, result=result, finished_at=now)
