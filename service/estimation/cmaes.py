@@ -94,11 +94,13 @@ def minimize(evaluate: Callable[[np.ndarray], np.ndarray], dimension: int, *, se
         inside = np.clip(X, 0.0, 1.0)
         f = np.asarray(evaluate(inside), dtype=float)
         evaluations += len(X)
-        worst = np.nanmax(np.where(np.isfinite(f), f, np.nan)) if np.any(np.isfinite(f)) else 1e6
-        f = np.where(np.isfinite(f), f, 10.0 * abs(worst) + 1.0)
+        finite = np.isfinite(f)
+        if not finite.all():
+            worst = np.max(f[finite]) if finite.any() else 1e6
+            f = np.where(finite, f, 10.0 * abs(worst) + 1.0)
         penalised = f + np.sum((X - inside) ** 2, axis=1)
         es.tell(arx, penalised.tolist())
-        k = int(np.argmin(f + np.sum((X - inside) ** 2, axis=1)))
+        k = int(np.argmin(penalised))
         if f[k] < best_f and np.all(X[k] == inside[k]):
             best_f, best_x = float(f[k]), inside[k].copy()
         best_hist.append(best_f)
