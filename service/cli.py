@@ -25,6 +25,7 @@ COMMANDS = {
     "worker": ("service.api.commands", "run a Celery fit worker (scaled-out shape)"),
     "diagnose": ("service.diagnosis.commands", "sim-to-real gap diagnosis of captures"),
     "agent": ("service.agent.commands", "edge agent: acquisition only, forwarding captures to a central hvcb"),
+    "refit": ("service.refit.commands", "re-fit stored operations (resumable; old results kept)"),
 }
 
 
