@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from datetime import datetime, timezone
 
-from sqlalchemy import (JSON, Boolean, DateTime, Float, ForeignKey, Index, Integer, String, Text,
+from sqlalchemy import (JSON, BigInteger, Boolean, DateTime, Float, ForeignKey, Index, Integer, String, Text,
                         TypeDecorator, UniqueConstraint)
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 
@@ -220,3 +220,14 @@ class WebSessionRow(Base):
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     expires_at: Mapped[datetime]
     ended_at: Mapped[datetime | None]
+
+
+class CapturePreviewRow(Base):
+    """What is left of a raw capture the retention policy removed: a decimated preview (min/max
+    per bucket, so no peak vanishes) for the operation page. Its fit and alarms are untouched."""
+
+    __tablename__ = "capture_previews"
+    operation_id: Mapped[int] = mapped_column(ForeignKey("operations.id", ondelete="CASCADE"), primary_key=True)
+    pruned_at: Mapped[datetime] = mapped_column(default=utcnow)
+    bytes_freed: Mapped[int] = mapped_column(BigInteger, default=0)
+    preview: Mapped[dict] = mapped_column(default=dict)  # {"t": [s], "travel": [rad], "vibration": [g] | None}
