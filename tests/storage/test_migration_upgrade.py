@@ -151,8 +151,16 @@ def seed_web_sessions() -> dict[str, list[dict]]:
                                   expires_at=T0 + timedelta(hours=8), ended_at=None)]}
 
 
+def seed_capture_previews() -> dict[str, list[dict]]:
+    return {"capture_previews": [dict(operation_id=2, pruned_at=T0 + timedelta(days=400), bytes_freed=164295,
+                                      preview={"t": [0.0, 0.01, 0.02], "travel": [0.0, 0.4, 1.1],
+                                               "vibration": None, "sample_rate": 128000.0, "n_samples": 51200,
+                                               "buckets": 100})]}
+
+
 # Revision -> the rows that revision's new tables hold. A migration that adds a table adds its seed.
-SEEDS = {"0001": seed_initial, "0002": seed_diagnoses, "0003_web": seed_web_sessions}
+SEEDS = {"0001": seed_initial, "0002": seed_diagnoses, "0003_web": seed_web_sessions,
+         "0005": seed_capture_previews}
 
 
 # -- helpers -------------------------------------------------------------------------------------
