@@ -336,6 +336,7 @@ def main(argv=None) -> int:
                     help="one download in N gets an exception response")
     args = ap.parse_args(argv)
     quiet_modbus()
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))  # stop the service and workers too
     DECOY_EVERY, FAULT_EVERY = args.decoy_every, args.fault_every
     if args.breakers < 1 or args.operations < args.breakers:
         ap.error("need at least one breaker and one operation per breaker")
@@ -488,7 +489,8 @@ def analyse(engine, url: str, tmp: Path, scripts, daqs: Daqs, per: list[int]) ->
         ops = c.execute(select(OperationRow.id, OperationRow.breaker_id, OperationRow.capture_path,
                                FitRow.status, FitRow.finished_at)
                         .join(FitRow, FitRow.operation_id == OperationRow.id)).all()
-        alarms = c.execute(select(AlarmRow.breaker_id, AlarmRow.parameter, AlarmRow.level)).all()
+        alarms = c.execute(select(AlarmRow.breaker_id, AlarmRow.parameter, AlarmRow.level, AlarmRow.state,
+                                  AlarmRow.evidence, AlarmRow.operation_id)).all()
     names = {v: k for k, v in breakers.items()}
     # each stored operation -> the scripted capture it came from, by stream position
     starts = [np.array([h[0] for h in handed]) for handed in daqs.handed]
@@ -537,10 +539,16 @@ def analyse(engine, url: str, tmp: Path, scripts, daqs: Daqs, per: list[int]) ->
     last = [d for _, d in steady[-tenth:]]
     drifted = {s.breaker.name for s in scripts if s.drift}
     raised: dict[str, list] = {n: [] for n in breakers}
-    for breaker_id, parameter, level in alarms:
-        raised[names[breaker_id]].append(f"{parameter}:{level}")
-    expected_ok = all(any(a.startswith(s.drift["parameter"]) for a in raised[s.breaker.name])
-                      for s in scripts if s.drift)
+    scripted_drift = {s.breaker.name: (s.drift["parameter"], s.drift["direction"]) for s in scripts if s.drift}
+    false_alarms = []
+    for breaker_id, parameter, level, st, evidence, op_id in alarms:
+        name = names[breaker_id]
+        direction = (evidence or {}).get("drift_direction")
+        text = f"{parameter} {direction} {level} ({st}) at operation {op_id}"
+        raised[name].append(text)
+        if scripted_drift.get(name) != (parameter, direction):
+            false_alarms.append({"breaker": name, "alarm": text})
+    expected_ok = all(any(a.startswith(f"{p} {d} alarm") for a in raised[n]) for n, (p, d) in scripted_drift.items())
     n_ops = len(ops)
     fits_done = sum(1 for o in ops if o.status == "done")
     p95 = (lambda v: round(float(np.percentile(v, 95)), 3) if v else None)
@@ -559,6 +567,9 @@ def analyse(engine, url: str, tmp: Path, scripts, daqs: Daqs, per: list[int]) ->
         "alarms_expected": len(drifted), "alarms_raised": sum(len(v) for v in raised.values()),
         "alarms_by_breaker": raised, "every_drift_alarmed": expected_ok,
         "control_breakers_alarmed": sum(1 for n, v in raised.items() if n not in drifted and v),
+        "control_breakers_alarm_level": sum(1 for n, v in raised.items()
+                                            if n not in drifted and any(" alarm (" in a for a in v)),
+        "false_alarms": false_alarms,
     }
 
 
