@@ -404,8 +404,10 @@ def main(argv=None) -> int:
                 log(f"warm-up done at {stored} operations: service RSS {warm['rss']:.1f} MB, "
                     f"workers {warm['workers']:.1f} MB")
             if stored != last_count:
+                step = max(1, total // 20)
+                crossed = stored // step != max(last_count, 0) // step
                 last_progress, last_count = time.monotonic(), stored
-                if stored % max(1, total // 20) == 0 or stored == total:
+                if crossed or stored == total:
                     el = time.monotonic() - t_start
                     log(f"{stored}/{total} stored, {state['pending']} fits pending, {el:.0f} s, "
                         f"{stored / max(el, 1e-9):.2f} op/s, RSS {rss_mb(service.pid):.1f} MB")
