@@ -345,7 +345,7 @@ def main(argv=None) -> int:
 
     from service.breaker_file import load_breaker
     from service.storage.db import make_engine
-    from service.storage.models import AlarmRow, BreakerRow, FitRow, OperationRow
+    from service.storage.models import FitRow, OperationRow
 
     tmp = Path(tempfile.mkdtemp(prefix="hvcb-soak-"))
     files = breaker_files(tmp, args.breakers)
