@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from datetime import datetime, timezone
 
-from sqlalchemy import (JSON, Boolean, DateTime, Float, ForeignKey, Index, Integer, String, Text,
+from sqlalchemy import (JSON, BigInteger, Boolean, DateTime, Float, ForeignKey, Index, Integer, String, Text,
                         TypeDecorator, UniqueConstraint)
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 
@@ -262,3 +262,14 @@ class FitVersionRow(Base):
     superseded_by_run: Mapped[int | None] = mapped_column(ForeignKey("refit_runs.id", ondelete="SET NULL"))
 
     __table_args__ = (UniqueConstraint("operation_id", "version", name="uq_fit_versions_operation_version"),)
+
+
+class CapturePreviewRow(Base):
+    """What is left of a raw capture the retention policy removed: a decimated preview (min/max
+    per bucket, so no peak vanishes) for the operation page. Its fit and alarms are untouched."""
+
+    __tablename__ = "capture_previews"
+    operation_id: Mapped[int] = mapped_column(ForeignKey("operations.id", ondelete="CASCADE"), primary_key=True)
+    pruned_at: Mapped[datetime] = mapped_column(default=utcnow)
+    bytes_freed: Mapped[int] = mapped_column(BigInteger, default=0)
+    preview: Mapped[dict] = mapped_column(default=dict)  # {"t": [s], "travel": [rad], "vibration": [g] | None}
