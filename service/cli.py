@@ -24,7 +24,11 @@ COMMANDS = {
     "key": ("service.api.commands", "create or revoke API keys"),
     "worker": ("service.api.commands", "run a Celery fit worker (scaled-out shape)"),
     "diagnose": ("service.diagnosis.commands", "sim-to-real gap diagnosis of captures"),
+    "prune": ("service.storage.commands", "remove raw captures the retention policy no longer keeps"),
+    "backup": ("service.storage.commands", "consistent online backup of the database and capture files"),
+    "restore": ("service.storage.commands", "restore a backup made by hvcb backup"),
     "agent": ("service.agent.commands", "edge agent: acquisition only, forwarding captures to a central hvcb"),
+    "refit": ("service.refit.commands", "re-fit stored operations (resumable; old results kept)"),
 }
 
 

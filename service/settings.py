@@ -103,6 +103,29 @@ class WebSettings(BaseModel):
     secret: str = Field("", description="cookie signing key; empty = generated once into <data_dir>/web.secret")
 
 
+class RetentionSettings(BaseModel):
+    """``[retention]``: how long raw captures stay on disk (docs/operations.md). Fits, alarms and
+    operation rows are kept forever, and so are the raw captures an alarm's evidence, a baseline
+    or a developing drift names. Any other raw capture is pruned when it is older than
+    ``max_age_days`` or not among its breaker's newest ``max_per_breaker``; a decimated preview
+    stays for the web page. Both limits empty: nothing is pruned."""
+
+    model_config = {"extra": "forbid"}
+    max_age_days: float | None = Field(None, gt=0, description="prune raw captures older than this [days]")
+    max_per_breaker: int | None = Field(None, ge=1, description="keep this many newest raw captures per breaker")
+    interval_s: float = Field(3600.0, ge=0, description="how often the service prunes [s]; 0 = only `hvcb prune`")
+    preview_buckets: int = Field(100, ge=10, le=2000, description="min/max buckets per channel in a preview")
+
+    @field_validator("max_age_days", "max_per_breaker", mode="before")
+    @classmethod
+    def _off_when_empty(cls, v):
+        return None if isinstance(v, str) and not v.strip() else v
+
+    @property
+    def active(self) -> bool:
+        return self.max_age_days is not None or self.max_per_breaker is not None
+
+
 def acquisition_list(value, where: str = "settings"):
     """``[[acquisition]]`` (a list) as is; the old single ``[acquisition]`` table as a one-entry
     list, with a deprecation note. Entries with driver "none" are dropped."""
@@ -173,6 +196,8 @@ class Settings(BaseSettings):
         default_factory=list, description="the DAQs this service listens to ([[acquisition]], one per DAQ; "
                                           "the old single [acquisition] table is still read)")
     web: WebSettings = Field(default_factory=WebSettings, description="the web page ([web] table)")
+    retention: RetentionSettings = Field(default_factory=RetentionSettings,
+                                         description="raw-capture retention ([retention] table)")
     alarms: dict = Field(default_factory=dict, description="drift detector settings, see docs/alarms.md "
                          "(service.alarms.settings.DriftSettings)")
     iec61850_port: int | None = Field(None, ge=1, le=65535,

@@ -87,6 +87,11 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
             except Exception:
                 monitor.stop()
                 raise
+        from service.storage.retention import RetentionSchedule
+
+        app.state.retention = RetentionSchedule(settings, Session)  # [retention]: prunes raw captures
+        if start_monitor:
+            app.state.retention.start()
         app.state.iec61850 = None
         if settings.iec61850_port:
             from service.iec61850.server import Iec61850Server
@@ -95,6 +100,7 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
                 app.state.iec61850 = Iec61850Server(settings, Session)
                 app.state.iec61850.start()
             except Exception:
+                app.state.retention.stop()
                 if start_monitor:
                     daq.stop()
                     monitor.stop()
@@ -102,6 +108,7 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
         try:
             yield
         finally:
+            app.state.retention.stop()
             if app.state.iec61850 is not None:
                 app.state.iec61850.stop()
             app.state.diagnoses.shutdown()

@@ -219,9 +219,12 @@ def operation_page(request: Request, operation_id: Id, user: Reader):
         op = crud.get_operation(session, operation_id=operation_id) or _not_found(f"operation {operation_id}")
         b = crud.get_breaker(session, breaker_id=op.breaker_id)
         diag = crud_web.get_diagnosis(session, operation_id=op.id)
+        from service.storage.retention import get_preview
+
+        pruned = get_preview(session, operation_id=op.id)
         names = OPENING if op.kind == "open" else CLOSING
         ctx = {"op": op, "b": b, "fit": op.fit, "diag": diag, "names": names, "units": UNITS,
-               "CHARACTERISTICS": CHARACTERISTICS, "nav": "fleet"}
+               "CHARACTERISTICS": CHARACTERISTICS, "nav": "fleet", "pruned": pruned}
         return page(request, "operation.html", ctx)
 
 
@@ -237,11 +240,34 @@ def operation_curves_json(request: Request, operation_id: Id, user: Reader):
             cap = read_capture(path, travel_channel=breaker.channels.get("travel", "travel"),
                                vibration_channel=breaker.channels.get("vibration", "vibration"))
         except CaptureError as exc:
-            return security_headers(JSONResponse({"detail": f"the capture file is not readable: {exc}"},
-                                                 status_code=410))
+            cap = _pruned_preview(session, op.id)
+            if cap is None:
+                return security_headers(JSONResponse({"detail": f"the capture file is not readable: {exc}"},
+                                                     status_code=410))
         body = operation_curves(cap, fit, breaker)
+        if getattr(cap, "note", None):
+            body["note"] = cap.note
     body.update(operation_id=operation_id, kind=op.kind, fit_status=fit.status if fit else None)
     return security_headers(JSONResponse(body))
+
+
+def _pruned_preview(session, operation_id: int):
+    """The decimated preview of a raw capture the retention policy removed, shaped like a capture."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from service.storage.retention import get_preview
+
+    row = get_preview(session, operation_id=operation_id)
+    if row is None or not row.preview.get("t"):
+        return None
+    p = row.preview
+    return SimpleNamespace(t=np.asarray(p["t"], float), travel=np.asarray(p["travel"], float),
+                           vibration=None if p.get("vibration") is None else np.asarray(p["vibration"], float),
+                           sample_rate=p["sample_rate"],
+                           note=f"raw capture pruned on {row.pruned_at:%Y-%m-%d} by the retention policy: "
+                                f"a min/max preview of {len(p['t'])} of its {p['n_samples']} samples is shown")
 
 
 @router.post("/operations/{operation_id}/diagnosis")

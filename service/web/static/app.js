@@ -230,7 +230,7 @@
         if (!r.ok) { throw new Error("curves: HTTP " + r.status); }
         return r.json();
       })
-      .then(function (j) { if (j) { drawOperation(j); } });
+      .then(function (j) { if (j) { drawOperation(j); if (j.note) { $("#curve-note").textContent = j.note; } } });
   }
 
   function blockMean(y, n) {
