@@ -24,8 +24,8 @@ def opening_end(T, M, S, r: int, settings, fs: float):
     """Peak of the opening travel [fractional segment index] and whether the fit succeeded.
 
     The arrival at the top follows the model, but the return to rest can be much quicker (a
-    critically damped return) or swing past rest: the two sides are fitted separately, each
-    leaving the top with zero slope (see ``_two_sided_peak``).
+    critically damped return) or swing past rest: each side of the top may get its own fit
+    (see ``_two_sided_peak``).
     """
     s = settings
 
@@ -41,15 +41,14 @@ def opening_end(T, M, S, r: int, settings, fs: float):
         stop = r + int(back[0])
     p0 = r + int(np.argmax(wide[r:stop]))
     return _two_sided_peak(T, M, wide, p0, n(s.peak_half_window_s),
-                           s.peak_fit_drop_fraction * s.stroke_rad, fs)
-
+                           s.peak_fit_drop_fraction * s.stroke_rad)
 
 
 MIN_SIDE = 16          # samples each side of a candidate top needs for its own fit
 TWO_SIDED_EVIDENCE = 20.0  # SSE drop [noise variances] that makes the two-sided fit win
 
 
-def _two_sided_peak(T, M, wide, p0: int, half: int, drop: float, fs: float):
+def _two_sided_peak(T, M, wide, p0: int, half: int, drop: float):
     """Top of the travel [fractional index] and whether the fit succeeded.
 
     The top p is searched over every 4th sample, then to a quarter sample, for two least-squares
@@ -63,7 +62,7 @@ def _two_sided_peak(T, M, wide, p0: int, half: int, drop: float, fs: float):
     ``TWO_SIDED_EVIDENCE`` noise variances (it has two more parameters). Each side's data run
     from the top until the smoothed travel ``wide`` has fallen ``drop`` [rad] below it, at most
     ``half`` samples, so a quick return is fitted only where a cubic still follows it. The
-    window is re-centred once on the result.
+    window is re-centred once when the result is far from where it was centred.
     """
     peak, ok, chosen = float(p0), False, None
     for _ in range(2):

@@ -9,8 +9,10 @@ Detection: the latch-release shock (|vibration| ≥ ``shock_threshold_g``) arms 
 becomes an operation when the smoothed travel moves more than ``motion_fraction`` of the stroke
 within ``confirm_s``. A shock without motion is rejected. The direction of travel decides
 opening (travel rises from closed) or closing. The valid window runs from the shock to the peak
-of the operation's own coordinate: for openings a cubic least-squares fit of the travel maximum,
-for closings the end of the cam rise, from a fit of the approach to the settled closed level.
+of the operation's own coordinate: for openings the top of the travel (one cubic across it, or
+one per side for a quick or oscillating return), for closings the end of the cam rise, from a
+fit of the approach to the settled closed level (``operation_end``). While an opening settles,
+its swing about rest starts no operation.
 """
 
 from __future__ import annotations

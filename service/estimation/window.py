@@ -298,7 +298,7 @@ def _settled(y, i_arrival: int, fs: float) -> bool:
 
 def _truncated_message(src, word, end: EndSpeed) -> str:
     return (f"{src}: the capture ends before the {word} reaches its maximum travel: it is still "
-            f"moving at {end.speed:.2f} rad/s ({100 * end.speed / end.peak_speed:.0f} % of its peak "
+            f"moving at {end.speed:.2f} rad/s ({100 * end.speed / max(end.peak_speed, 1e-9):.0f} % of its peak "
             "speed) at the last sample (truncated capture)")
 
 
