@@ -166,8 +166,8 @@ def _fit(capture_path: str, expected_sha: str, breaker, kind: str, dc, options: 
     if hasattr(result, "fitted_travel"):
         fitted = np.asarray(result.fitted_travel(capture, breaker), dtype=float)
         idx = np.unique(np.linspace(0, fitted.size - 1, min(options.curve_points, fitted.size)).astype(int))
-        curve = {"t": [round(float(v), 9) for v in capture.t[idx]],
-                 "fitted": [round(float(v), 7) for v in fitted[idx]]}
+        curve = {"t": np.round(capture.t[idx], 9).tolist(),
+                 "fitted": np.round(fitted[idx], 7).tolist()}
     return _jsonable(out), curve
 
 

@@ -36,6 +36,24 @@ def parse_since(text: str | None) -> datetime | None:
     return value if value.tzinfo else value.replace(tzinfo=timezone.utc)
 
 
+def _check_database(engine, url: str) -> None:
+    """A missing or unmigrated database is a sentence, not a traceback."""
+    from sqlalchemy.exc import SQLAlchemyError
+
+    from service.api.app import NotMigrated, check_schema
+
+    where = url.split("@")[-1]
+    try:
+        check_schema(engine)
+    except NotMigrated as exc:
+        engine.dispose()
+        raise UserError(f"database {where}: {exc}") from None
+    except SQLAlchemyError as exc:
+        engine.dispose()
+        raise UserError(f"database {where} cannot be reached ({type(exc).__name__}); check "
+                        "DATABASE_URL or the settings") from None
+
+
 def cmd_refit(args) -> int:
     from service.api.commands import _settings
     from service.jobs.fit import JobOptions
@@ -53,6 +71,7 @@ def cmd_refit(args) -> int:
     settings = _settings(args)
     engine = make_engine(settings.sqlalchemy_url)
     Session = session_factory(engine)
+    _check_database(engine, settings.sqlalchemy_url)
     options = JobOptions.from_settings(settings)
     with Session() as session, session.begin():
         run, resumed = start_run(session, breaker=args.breaker, since=since, requested_by="hvcb refit")
