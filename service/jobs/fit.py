@@ -105,6 +105,9 @@ def run_fit_job(operation_id: int, options: JobOptions | dict) -> dict:
         if failure is not None:
             landed = crud.store_fit_failure(session, operation_id=operation_id, reason=failure)
             return {"operation_id": operation_id, "status": "failed", "landed": landed, "runtime_s": runtime}
+        # The breaker row is locked before the parameter rows are inserted (their foreign key
+        # share-locks it): the other way round two workers deadlock in update_drift (PostgreSQL).
+        session.execute(select(BreakerRow.id).where(BreakerRow.id == breaker_row.id).with_for_update())
         landed = crud.store_fit_result(session, operation_id=operation_id, result=result_dict, curve=curve)
         if landed:
             update_drift(session, breaker_id=breaker_row.id, options=options)
