@@ -6,7 +6,7 @@ import sys
 
 
 def progress(total: int | None = None, *, desc: str = "", unit: str = "it", stream=None,
-             initial: int = 0):
+             initial: int = 0, unit_scale: bool = False):
     """A tqdm bar with rate and time left on ``stream`` (stderr), disabled unless it is a TTY.
 
     The caller drives it with ``update(n)`` and closes it (or uses it as a context manager).
@@ -19,7 +19,7 @@ def progress(total: int | None = None, *, desc: str = "", unit: str = "it", stre
     stream = stream if stream is not None else sys.stderr
     tty = bool(getattr(stream, "isatty", lambda: False)())
     return Bar(total=total, desc=desc, unit=unit, file=stream, disable=not tty, initial=initial,
-               ncols=_columns(stream) if tty else None, smoothing=0.1)
+               ncols=_columns(stream) if tty else None, smoothing=0.1, unit_scale=unit_scale)
 
 
 def _columns(stream) -> int:

@@ -76,7 +76,11 @@ def run_detect(args) -> int:
     breaker, settings = _settings(args)
     recording = read_capture(args.stream, travel_channel=breaker.channels.get("travel", "travel"),
                              vibration_channel=breaker.channels.get("vibration", "vibration"))
-    found = detect_capture(recording, settings)
+    from service.progress import progress
+
+    with progress(recording.travel.size, desc=f"detect {Path(args.stream).name}", unit="sample",
+                  unit_scale=True) as bar:
+        found = detect_capture(recording, settings, on_progress=bar.update)
     rows = [op.to_dict(origin_index=recording.first_sample_index) for op in found]
     if args.json:
         print(json.dumps(rows, indent=1))

@@ -17,14 +17,14 @@ its swing about rest starts no operation.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from datetime import timedelta
 
 import numpy as np
 
-from drivers.interface import SampleBlock
-
 from drivers.capture import Capture
+from drivers.interface import SampleBlock
 
 from .operation_end import closing_end, moving_average, opening_end, settling
 from .sample_ring import SampleRing
@@ -401,9 +401,12 @@ def _cluster_end(hits: np.ndarray, gap: int) -> int:
     return int(hits[breaks[0]] if breaks.size else hits[-1]) + 1
 
 
-def detect_capture(capture: Capture, settings: TriggerSettings, *,
-                   block_samples: int = 65_536) -> list[DetectedOperation]:
-    """Run the detector over a whole recording; times refer to its first sample."""
+def detect_capture(capture: Capture, settings: TriggerSettings, *, block_samples: int = 65_536,
+                   on_progress: Callable[[int], None] | None = None) -> list[DetectedOperation]:
+    """Run the detector over a whole recording; times refer to its first sample.
+
+    ``on_progress(n)`` is told each time ``n`` more samples have been scanned.
+    """
     if capture.vibration is None:
         raise ValueError(f"{capture.source or 'the recording'} has no vibration channel: "
                          "the trigger needs the latch-release shock")
@@ -413,6 +416,8 @@ def detect_capture(capture: Capture, settings: TriggerSettings, *,
     for i in range(0, capture.travel.size, block_samples):
         found += detector.feed(SampleBlock(first + i, capture.travel[i:i + block_samples],
                                            capture.vibration[i:i + block_samples], capture.sample_rate))
+        if on_progress is not None:
+            on_progress(min(block_samples, capture.travel.size - i))
     found += detector.flush()
     if capture.start_time is not None:
         found = [_with_start_time(op, capture) for op in found]

@@ -49,3 +49,22 @@ def test_study_pool_map_keeps_task_order_and_results():
     from service.studies.common import pool_map
 
     assert pool_map(abs, [-3, 2, -1], workers=1) == [3, 2, 1]
+
+
+def test_detect_reports_every_sample_of_a_long_recording(breaker):
+    """``hvcb detect``'s bar is driven by the detector: the counts add up to the recording."""
+    from drivers.capture import Capture
+    from drivers.emulators.sources import synthetic_stream
+    from service.acquisition.trigger import TriggerSettings, detect_capture
+
+    import numpy as np
+
+    blocks = list(synthetic_stream(breaker, operations=("open", "close"), idle_s=0.05, seed=4))
+    travel = np.concatenate([b.travel for b in blocks])
+    vibration = np.concatenate([b.vibration for b in blocks])
+    rec = Capture(travel=travel, vibration=vibration, sample_rate=blocks[0].sample_rate, source="stream")
+    told = []
+    found = detect_capture(rec, TriggerSettings.from_breaker(breaker), block_samples=10_000,
+                           on_progress=told.append)
+    assert sum(told) == travel.size and len(told) == -(-travel.size // 10_000)
+    assert [op.operation for op in found] == ["open", "close"]
