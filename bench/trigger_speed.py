@@ -4,7 +4,7 @@ Runs on one core. The stream (default 10 min at 128 kHz, an operation every seco
 and noise bursts) is generated lazily block by block; only the time spent inside the detector is
 counted, as CPU time of this process (the speed figure) and as wall time. Prints the figures and writes ``bench/results/trigger_speed.json``.
 
-    .venv/bin/python bench/trigger_speed.py [--minutes 10] [--block-samples 4096]
+    .venv/bin/python bench/trigger_speed.py [--minutes 10] [--block-samples 4096] [--return-shape model|critical|oscillating]
 """
 
 from __future__ import annotations
@@ -36,6 +36,8 @@ def main(argv=None) -> int:
     parser.add_argument("--minutes", type=float, default=10.0, help="stream length [min]")
     parser.add_argument("--block-samples", type=int, default=4096, help="samples per block")
     parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--return-shape", choices=("model", "critical", "oscillating"), default="model",
+                        help="how openings return from overtravel to rest")
     parser.add_argument("--out", default=str(ROOT / "bench" / "results" / "trigger_speed.json"))
     args = parser.parse_args(argv)
 
@@ -51,7 +53,7 @@ def main(argv=None) -> int:
     shocks = [LoneShock(t + 0.55, 300.0) for t in range(0, int(duration) - 1, 7)]
     bursts = [NoiseBurst(t + 0.75, 0.05) for t in range(0, int(duration) - 1, 13)]
     stream = ScriptedStream(breaker, duration_s=duration, seed=args.seed, spacing_s=1.0,
-                            shocks=shocks, bursts=bursts)
+                            shocks=shocks, bursts=bursts, return_shape=args.return_shape)
     detector = TriggerDetector(TriggerSettings.from_breaker(breaker), stream.fs)
 
     busy = 0.0  # detector CPU time on this one core [s]; immune to other load on the machine
@@ -80,6 +82,7 @@ def main(argv=None) -> int:
         "operations_detected": found,
         "lone_shocks": len(shocks),
         "noise_bursts": len(bursts),
+        "return_shape": args.return_shape,
         "detector_cpu_s": round(busy, 3),
         "detector_wall_s": round(busy_wall, 3),
         "speed_x_real_time": round(duration / busy, 1),

@@ -28,6 +28,10 @@ def register(subparsers) -> None:
     s.add_argument("--script", choices=("alternating", "acceptance"), default="alternating",
                    help="alternating: open/close every second; acceptance: the issue's 60 s stream "
                         "with 12 operations, lone shocks, a noise burst and a clipped shock")
+    s.add_argument("--return-shape", choices=("model", "critical", "oscillating"), default="model",
+                   help="how openings return from overtravel to rest: the model's own slow return, "
+                        "critically damped (at rest within 5 ms), or oscillating (the rebound swings "
+                        "past rest)")
     s.add_argument("--frame-samples", type=int, default=256, help="samples per frame")
     for fault in ("corrupt", "drop", "garbage", "disconnect"):
         s.add_argument(f"--{fault}-every", type=int, default=0, metavar="N",
@@ -77,7 +81,7 @@ def run_serial(args) -> int:
         raise ValueError("--duration must be positive")
     breaker, scaling = _load(args)
     source = emulator_source(breaker, seed=args.seed, duration_s=args.duration, fs=scaling.sample_rate_hz,
-                             script=args.script)
+                             script=args.script, return_shape=args.return_shape)
     faults = FaultPlan(corrupt_every=args.corrupt_every, drop_every=args.drop_every,
                        garbage_every=args.garbage_every, disconnect_every=args.disconnect_every)
     em = SerialDaqEmulator(source, link="pty" if args.pty else "tcp", scaling=scaling,

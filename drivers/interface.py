@@ -63,7 +63,11 @@ class DriverStats:
 
 @runtime_checkable
 class Driver(Protocol):
-    """A DAQ driver: ``async for block in driver: ...``; ``await driver.aclose()`` stops it."""
+    """A DAQ driver: ``async for block in driver: ...``; ``await driver.aclose()`` stops it.
+
+    A driver whose DAQ holds data until told (Modbus capture buffer) also has
+    ``async release()``: the consumer calls it once the last block is durable.
+    """
 
     stats: DriverStats
 

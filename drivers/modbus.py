@@ -2,8 +2,10 @@
 
 The DAQ triggers itself and holds one capture in registers (``drivers.modbus_map``). The driver
 polls the header; when a capture is ready it downloads the payload in reads of at most 125
-registers, checks the length and the CRC-32, acknowledges so the DAQ frees the buffer, and only
-then yields the capture as ONE ``SampleBlock`` flagged ``capture``. A timeout or an exception
+registers, checks the length and the CRC-32 and yields the capture as ONE ``SampleBlock`` flagged
+``capture``. The DAQ's buffer is acknowledged (freed) only when the consumer calls ``release()``
+after the capture is durable, or asks for the next capture: a crash in between leaves the capture
+in the DAQ, to be downloaded again, never lost. A timeout or an exception
 response is retried a bounded number of times; after that the download is abandoned (no half
 capture is ever yielded) and the whole capture is fetched again on the next poll.
 """
@@ -21,6 +23,7 @@ from pymodbus.exceptions import ModbusException
 from . import modbus_map as mm
 from .errors import CaptureDownloadError
 from .interface import DriverStats, SampleBlock
+from .pymodbus_logging import quiet_pymodbus
 from .scaling import ChannelScaling
 
 log = logging.getLogger("drivers.modbus")
@@ -93,6 +96,7 @@ class ModbusSettings:
 
 def make_client(settings: ModbusSettings):
     """A pymodbus async client without its own retries or reconnects (the driver owns both)."""
+    quiet_pymodbus()
     if settings.transport == "tcp":
         return AsyncModbusTcpClient(settings.host, port=settings.port, timeout=settings.timeout_s,
                                     retries=0, reconnect_delay=0)
@@ -116,6 +120,7 @@ class ModbusCaptureDriver:
         self._sleep = sleep
         self._closed = False
         self._delivered = None  # (capture id, first index, crc) of the last capture yielded
+        self._unreleased: mm.CaptureHeader | None = None  # yielded, not yet acknowledged
         self._ever_connected = False
         self._backoff = settings.reconnect_min_s
 
@@ -128,8 +133,16 @@ class ModbusCaptureDriver:
         self.client.close()
         self.stats.connected = False
 
+    async def release(self) -> None:
+        """Acknowledge the capture last yielded: call once it is durable; the DAQ then frees it."""
+        header, self._unreleased = self._unreleased, None
+        if header is not None and not self._closed:
+            await self._acknowledge(header)
+
     async def __anext__(self) -> SampleBlock:
         s = self.settings
+        if self._unreleased is not None:  # asking for more means the last one was handled
+            await self.release()
         while not self._closed:
             if not await self._ensure_connected():
                 continue
@@ -155,7 +168,7 @@ class ModbusCaptureDriver:
                 await self._sleep(s.poll_interval_s)
                 continue
             self._delivered = key
-            await self._acknowledge(header)
+            self._unreleased = header
             self.stats.captures += 1
             self.stats.samples += block.travel.size
             return block

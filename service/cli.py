@@ -28,6 +28,7 @@ COMMANDS = {
     "backup": ("service.storage.commands", "consistent online backup of the database and capture files"),
     "restore": ("service.storage.commands", "restore a backup made by hvcb backup"),
     "agent": ("service.agent.commands", "edge agent: acquisition only, forwarding captures to a central hvcb"),
+    "refit": ("service.refit.commands", "re-fit stored operations (resumable; old results kept)"),
 }
 
 

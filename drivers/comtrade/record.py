@@ -240,7 +240,40 @@ def _sample_times(header: Header, stamps: np.ndarray, n: int, name: str, notes: 
     return time, 1.0 / period, "time stamps", uniform
 
 
+# The raw value that marks a missing analog sample (0x8000…); raw -1 in 1991 data is a value
+# (see Header.canonical_text), and FLOAT32 has no marker.
+_MISSING = {"BINARY": -32768, "BINARY32": -2147483648, "FLOAT32": None}
+_RAW_TYPE = {"BINARY": "<i2", "BINARY32": "<i4", "FLOAT32": "<f4"}
+
+
 def _channel_values(header: Header, payload, rate: float, n: int, dat_name: str):
+    if header.file_type in _RAW_TYPE:
+        return _binary_values(header, payload, n)
+    return _package_values(header, payload, rate, n, dat_name)
+
+
+def _binary_values(header: Header, payload: bytes, n: int):
+    """The binary layouts decoded column by column, as the comtrade package does; the package
+    also works out a time per sample in Python, which this layer takes from the header instead
+    (5–9 ms of a 10 k-sample capture)."""
+    raw = _RAW_TYPE[header.file_type]
+    n_a, n_words = len(header.analog), -(-len(header.digital) // 16)
+    fields = [("n", "<u4"), ("t", "<u4")] + [(f"a{k}", raw) for k in range(n_a)] \
+        + [(f"d{k}", "<u2") for k in range(n_words)]
+    rows = np.frombuffer(payload, dtype=np.dtype(fields), count=n)
+    missing = _MISSING[header.file_type]
+    analog = []
+    for k, ch in enumerate(header.analog):
+        y = rows[f"a{k}"].astype(np.float64)
+        v = ch.a * y + ch.b
+        if missing is not None:
+            v[y == missing] = np.nan
+        analog.append(v)
+    status = [(rows[f"d{k // 16}"].astype(np.int64) >> (k % 16)) & 1 for k in range(len(header.digital))]
+    return _Values(analog, status)
+
+
+def _package_values(header: Header, payload, rate: float, n: int, dat_name: str):
     import comtrade
 
     pkg = comtrade.Comtrade(use_numpy_arrays=True, use_double_precision=True, ignore_warnings=True)

@@ -23,6 +23,7 @@ from pymodbus.simulator import DataType, SimData, SimDevice
 
 from .. import modbus_map as mm
 from ..interface import SampleBlock
+from ..pymodbus_logging import quiet_pymodbus
 from ..scaling import ChannelScaling
 
 log = logging.getLogger("drivers.emulators.modbus")
@@ -116,6 +117,7 @@ class ModbusDaqEmulator:
 
     async def start(self) -> str:
         """Start serving; returns ``url`` (with the real port when port 0 was asked for)."""
+        quiet_pymodbus()
         device = SimDevice(self.device_id, simdata=[SimData(0, count=mm.REGISTER_SPACE, values=0,
                                                             datatype=DataType.REGISTERS)],
                            action=self._action)

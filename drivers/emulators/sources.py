@@ -57,13 +57,14 @@ def synthetic_stream(breaker, *, operations: Sequence[str] = ("open",), idle_s: 
 
 
 def emulator_source(breaker, *, seed: int, duration_s: float, fs: float,
-                    script: str = "alternating") -> Iterator[SampleBlock]:
+                    script: str = "alternating", return_shape: str = "model") -> Iterator[SampleBlock]:
     """The CLI's stream.
 
     ``script="acceptance"``: the issue's 60 s acceptance stream (12 operations, lone shocks, a
     noise burst, a clipped shock) from ``service.acquisition.stream_script``. ``"alternating"``:
-    openings and closings every second for ``duration_s``. Falls back on ``synthetic_stream``
-    when the scripted streams are not available.
+    openings and closings every second for ``duration_s``. ``return_shape`` (``model``,
+    ``critical``, ``oscillating``) is how openings return from overtravel to rest. Falls back on
+    ``synthetic_stream`` (model return only) when the scripted streams are not available.
     """
     if script not in ("alternating", "acceptance"):
         raise ValueError(f"script must be 'alternating' or 'acceptance', got {script!r}")
@@ -73,8 +74,12 @@ def emulator_source(breaker, *, seed: int, duration_s: float, fs: float,
         stream_script = None
     if stream_script is not None:
         if script == "acceptance":
-            return stream_script.acceptance_script(breaker, seed=seed, fs=fs).blocks(4096)
-        return stream_script.ScriptedStream(breaker, duration_s=duration_s, seed=seed, fs=fs).blocks(4096)
+            return stream_script.acceptance_script(breaker, seed=seed, fs=fs,
+                                                   return_shape=return_shape).blocks(4096)
+        return stream_script.ScriptedStream(breaker, duration_s=duration_s, seed=seed, fs=fs,
+                                            return_shape=return_shape).blocks(4096)
+    if return_shape != "model":
+        raise ValueError(f"the return shape {return_shape!r} needs service.acquisition.stream_script")
     per_op = 0.6
     n_ops = max(1, int(duration_s // per_op))
     ops = ["open" if i % 2 == 0 else "close" for i in range(n_ops)]

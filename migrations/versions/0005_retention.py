@@ -1,14 +1,14 @@
 """retention: decimated previews of raw captures removed by the retention policy
 
 Revision ID: 0005
-Revises: 0003_web (the lead re-chains this to '0004' when merging: change down_revision only)
+Revises: 0004
 """
 from alembic import op
 import sqlalchemy as sa
 
 
 revision = '0005'
-down_revision = '0003_web'
+down_revision = '0004'
 branch_labels = None
 depends_on = None
 

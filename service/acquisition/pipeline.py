@@ -125,6 +125,9 @@ async def capture_stream(driver, detector: TriggerDetector | TriggerSettings, ou
             else:
                 found = detector.feed(block)
             await emit(found)
+            release = getattr(driver, "release", None)
+            if release is not None:  # the block's captures are durable: the DAQ may free them
+                await release()
             if max_captures is not None and stats.captures >= max_captures:
                 break
         if isinstance(detector, TriggerDetector):

@@ -32,6 +32,13 @@ BURST_LENGTH_S = 12 * BURST_TAU_S
 FULL_SCALE_G = 1000.0          # accelerometer clips here [g]
 TRAVEL_FULL_SCALE_RAD = np.pi  # 0–180° resistive sensor [rad]
 LATCH_FREQ_HZ, BUFFER_FREQ_HZ, END_FREQ_HZ = 2500.0, 2200.0, 1800.0
+REST_FREQ_HZ = 2000.0
+# How an opening returns from its overtravel to the open rest position: the model's own slow
+# return, a critically damped one back at rest within CRITICAL_RETURN_S, or an oscillating one
+# whose rebound swings past rest (damping ratio and frequency below).
+RETURN_SHAPES = ("model", "critical", "oscillating")
+CRITICAL_RETURN_S = 5e-3
+OSCILLATING_ZETA, OSCILLATING_HZ = 0.15, 60.0
 
 
 @dataclass(frozen=True)
@@ -132,6 +139,10 @@ class ScriptedStream:
         Relative random spread of each operation's parameters around the design values.
     first_index : int
         Sample index of the first sample.
+    return_shape : {"model", "critical", "oscillating"}
+        How openings return from their overtravel to rest (see ``opening_return``); the
+        returning shaft hits its rest stop (critical) or swings through rest (oscillating)
+        with a vibration burst, so the settling carries a shock.
     """
 
     def __init__(self, breaker: Breaker, *, duration_s: float, seed: int = 1,
@@ -140,11 +151,14 @@ class ScriptedStream:
                  gaps: Sequence[Gap] = (), fs: float = 128_000.0, noise_rad: float = 0.0015,
                  noise_g: float = 0.6, bits: int | None = 16, initial: str = "closed",
                  spacing_s: float = 1.0, param_spread: float = 0.0, first_index: int = 0,
-                 pre_s: float = 0.02, post_s: float = 0.03):
+                 pre_s: float = 0.02, post_s: float = 0.03, return_shape: str = "model"):
         if not duration_s > 0 or not fs > 0:
             raise ValueError("a scripted stream needs a positive duration [s] and sample rate [Hz]")
         if initial not in ("closed", "open"):
             raise ValueError(f"initial position must be 'closed' or 'open', got {initial!r}")
+        if return_shape not in RETURN_SHAPES:
+            raise ValueError(f"return shape must be one of {', '.join(RETURN_SHAPES)}, got {return_shape!r}")
+        self.return_shape = return_shape
         self.breaker, self.fs, self.seed = breaker, float(fs), int(seed)
         self.n_samples = int(round(duration_s * fs))
         self.first_index = int(first_index)
@@ -182,7 +196,8 @@ class ScriptedStream:
         return p
 
     def _template(self, operation, params):
-        """Noise-free travel from motion onset [rad] and the valid-window end [s]; cached."""
+        """Noise-free travel from motion onset [rad], the valid-window end [s], the buffer
+        engagement [s] and the instant the return reaches rest [s] (NaN: model return); cached."""
         key = (operation, tuple(sorted(params.items())))
         if key not in self._templates:
             t = np.arange(int(OPEN_TEMPLATE_S * self.fs)) / self.fs
@@ -194,11 +209,14 @@ class ScriptedStream:
                 k = int(np.floor(t_peak * self.fs)) + 1
                 travel = travel[:k]
             events = tr.events.get("buffer_engaged", np.nan) if operation == "open" else np.nan
-            self._templates[key] = (travel, float(t_peak), float(events))
+            t_rest = np.nan
+            if operation == "open" and self.return_shape != "model":
+                travel, t_rest = opening_return(travel, t_peak, self.fs, self.return_shape)
+            self._templates[key] = (travel, float(t_peak), float(events), float(t_rest))
         return self._templates[key]
 
     def _open_rest_level(self):
-        travel, _, _ = self._template("open", self._params("open", None))
+        travel = self._template("open", self._params("open", None))[0]
         return float(travel[-1])
 
     def _place(self, operations, initial) -> list[_Placed]:
@@ -211,7 +229,7 @@ class ScriptedStream:
             if position != wanted:
                 raise ValueError(f"cannot {spec.operation} a breaker that is already {position}")
             params = self._params(spec.operation, spec.params)
-            model, t_peak, t_buffer = self._template(spec.operation, params)
+            model, t_peak, t_buffer, t_rest = self._template(spec.operation, params)
             if spec.t_s is None:
                 if not placed:
                     raise ValueError("the first scripted operation needs a time t_s")
@@ -229,6 +247,8 @@ class ScriptedStream:
                       (m + t_peak * self.fs, 0.3 * 420.0, END_FREQ_HZ)]
             if np.isfinite(t_buffer):
                 events.append((m + t_buffer * self.fs, 0.6 * 420.0, BUFFER_FREQ_HZ))
+            if np.isfinite(t_rest):
+                events.append((m + t_rest * self.fs, 0.3 * 420.0, REST_FREQ_HZ))
             placed.append(_Placed(spec.operation, m, template, float(template[-1]),
                                   t_peak * self.fs, tuple(events), params))
             position = "open" if spec.operation == "open" else "closed"
@@ -351,6 +371,42 @@ class ScriptedStream:
                        vibration_limits=(-FULL_SCALE_G, FULL_SCALE_G))
 
 
+def opening_return(travel: np.ndarray, t_peak: float, fs: float, shape: str):
+    """Replace an opening's return from its overtravel by ``shape``.
+
+    ``travel`` [rad] is sampled at ``fs`` [Hz] from the motion onset and ends at the open rest
+    level; ``t_peak`` [s] is its maximum. Before the peak nothing changes; after it the travel
+    leaves the peak with zero speed and goes back to the rest level:
+
+    - ``critical``: (1 + ωτ)·e^(−ωτ), ω = 6 / CRITICAL_RETURN_S (within 2 % of rest by then);
+    - ``oscillating``: a damped swing (ζ, f) that passes the rest level and rings about it.
+
+    Returns the new travel and the time [s] the return first reaches rest (the rest-stop
+    impact, or the first pass through rest).
+    """
+    t = np.arange(travel.size) / fs
+    after = t > t_peak
+    k = int(np.argmax(after))
+    rest = float(travel[-1])
+    top = float(np.max(travel[max(k - 2, 0):k + 1]))
+    tau = t[after] - t_peak
+    if shape == "critical":
+        w = 6.0 / CRITICAL_RETURN_S
+        ret = (1.0 + w * tau) * np.exp(-w * tau)
+        t_rest = CRITICAL_RETURN_S
+    elif shape == "oscillating":
+        wn = 2 * np.pi * OSCILLATING_HZ
+        wd = wn * np.sqrt(1 - OSCILLATING_ZETA**2)
+        decay = OSCILLATING_ZETA * wn
+        ret = np.exp(-decay * tau) * (np.cos(wd * tau) + decay / wd * np.sin(wd * tau))
+        t_rest = float(np.arctan2(-wd, decay) % np.pi) / wd  # first zero of the swing
+    else:
+        raise ValueError(f"return shape must be one of {', '.join(RETURN_SHAPES[1:])}, got {shape!r}")
+    out = travel.copy()
+    out[after] = rest + (top - rest) * ret
+    return out, t_peak + t_rest
+
+
 def _blend(model: np.ndarray, start_level: float) -> np.ndarray:
     """Shift a model travel so it starts at ``start_level`` and ends where the model ends: the
     offset fades with the operation's progress, so the level stays continuous."""
@@ -375,7 +431,8 @@ def _alternating(duration_s, spacing_s, initial) -> list[ScriptedOperation]:
 
 def acceptance_script(breaker: Breaker, seed: int = 1, **kwargs) -> ScriptedStream:
     """The issue's 60 s acceptance stream: 12 operations including an O–0.3 s–CO sequence,
-    3 lone vibration shocks, a noise burst and a clipped (±1000 g) latch shock."""
+    3 lone vibration shocks, a noise burst and a clipped (±1000 g) latch shock. Keyword
+    arguments go to ``ScriptedStream`` (e.g. ``return_shape``)."""
     O, C = "open", "close"
     ops = [
         ScriptedOperation(O, 2.0), ScriptedOperation(C, 6.5), ScriptedOperation(O, 11.0),

@@ -9,8 +9,10 @@ Detection: the latch-release shock (|vibration| ≥ ``shock_threshold_g``) arms 
 becomes an operation when the smoothed travel moves more than ``motion_fraction`` of the stroke
 within ``confirm_s``. A shock without motion is rejected. The direction of travel decides
 opening (travel rises from closed) or closing. The valid window runs from the shock to the peak
-of the operation's own coordinate: for openings a cubic least-squares fit of the travel maximum,
-for closings the end of the cam rise, from a fit of the approach to the settled closed level.
+of the operation's own coordinate: for openings the top of the travel (one cubic across it, or
+one per side for a quick or oscillating return), for closings the end of the cam rise, from a
+fit of the approach to the settled closed level (``operation_end``). While an opening settles,
+its swing about rest starts no operation.
 """
 
 from __future__ import annotations
@@ -23,6 +25,9 @@ import numpy as np
 from drivers.interface import SampleBlock
 
 from drivers.capture import Capture
+
+from .operation_end import closing_end, moving_average, opening_end, settling
+from .sample_ring import SampleRing
 
 OPEN, CLOSE = "open", "close"
 INCOMPLETE = "incomplete"                 # samples missing (stream gap) or stream ended early
@@ -61,8 +66,14 @@ class TriggerSettings:
         Travel within this fraction of the stroke from its far end counts as arriving [-].
     settle_s, settle_fraction : float
         Settled when the travel changes less than ``settle_fraction`` of the stroke over ``settle_s``.
+    rest_s : float
+        At rest after an operation when the travel stays within ``settle_fraction`` of the stroke
+        for ``rest_s`` (about one period of a rebound ringing about rest) [s].
     peak_half_window_s : float
         Half width of the opening peak fit [s].
+    peak_fit_drop_fraction : float
+        Each side of the opening peak fit ends where the travel has fallen this fraction of the
+        stroke below the top (or at the half width) [-].
     closing_fit_fraction : float
         The closing end fit uses the last part of the motion, this fraction of the stroke [-].
     rearm_s : float
@@ -84,7 +95,9 @@ class TriggerSettings:
     end_band_fraction: float = 0.1
     settle_s: float = 0.005
     settle_fraction: float = 0.01
+    rest_s: float = 0.015
     peak_half_window_s: float = 0.006
+    peak_fit_drop_fraction: float = 0.01
     closing_fit_fraction: float = 0.15
     rearm_s: float = 0.005
     vibration_full_scale_g: float = 1000.0
@@ -92,7 +105,7 @@ class TriggerSettings:
 
     def __post_init__(self):
         for name in ("stroke_rad", "shock_threshold_g", "pre_trigger_s", "confirm_s",
-                     "max_operation_s", "smoothing_s", "settle_s", "peak_half_window_s"):
+                     "max_operation_s", "smoothing_s", "settle_s", "rest_s", "peak_half_window_s"):
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):
                 raise ValueError(f"trigger setting {name} must be a positive number, got {value}")
@@ -114,7 +127,7 @@ class TriggerSettings:
     @property
     def horizon_s(self) -> float:
         """Data needed after a shock before it is judged [s]."""
-        return self.max_operation_s + self.settle_s + self.post_s + self.peak_half_window_s
+        return self.max_operation_s + max(self.settle_s, self.rest_s) + self.post_s + self.peak_half_window_s
 
 
 @dataclass(frozen=True)
@@ -162,78 +175,6 @@ class DetectedOperation:
                 "capture_end_s": (cap.first_sample_index + cap.travel.size - origin_index) / fs}
 
 
-class SampleRing:
-    """Fixed-capacity ring of the latest samples; ``valid`` is False for samples lost in a gap."""
-
-    def __init__(self, capacity: int):
-        self.capacity = int(capacity)
-        self.travel = np.zeros(self.capacity)
-        self.vibration = np.zeros(self.capacity, dtype=np.float32)
-        self.valid = np.zeros(self.capacity, dtype=bool)
-        self.end = 0    # stream index one past the newest sample
-        self.first = 0  # oldest stream index ever stored
-
-    def reset(self, index: int):
-        self.end = self.first = int(index)
-        self.valid[:] = False
-
-    @property
-    def start(self) -> int:
-        """Oldest stream index still held."""
-        return max(self.first, self.end - self.capacity)
-
-    def append(self, travel, vibration, valid: bool = True):
-        n = len(travel)
-        if n > self.capacity:  # only the newest samples fit
-            self.end += n - self.capacity
-            travel, vibration, n = travel[-self.capacity:], vibration[-self.capacity:], self.capacity
-        pos = self.end % self.capacity
-        head = min(n, self.capacity - pos)
-        for dst, src in ((self.travel, travel), (self.vibration, vibration)):
-            dst[pos:pos + head] = src[:head]
-            dst[:n - head] = src[head:]
-        self.valid[pos:pos + head] = valid
-        self.valid[:n - head] = valid
-        self.end += n
-
-    def fill_gap(self, n: int):
-        """Account for ``n`` lost samples: held travel, zero vibration, marked invalid."""
-        last = self.travel[(self.end - 1) % self.capacity] if self.end > self.first else 0.0
-        m = min(n, self.capacity)
-        self.end += n - m
-        self.append(np.full(m, last), np.zeros(m, dtype=np.float32), valid=False)
-
-    def _pieces(self, i0: int, i1: int):
-        """Ring slices covering stream indices [i0, i1) ∩ held samples, oldest first."""
-        i0, i1 = max(i0, self.start), min(i1, self.end)
-        if i1 <= i0:
-            return i0, []
-        p0 = i0 % self.capacity
-        n = i1 - i0
-        if p0 + n <= self.capacity:
-            return i0, [slice(p0, p0 + n)]
-        return i0, [slice(p0, self.capacity), slice(0, n - (self.capacity - p0))]
-
-    def get(self, i0: int, i1: int):
-        """Copies of travel, vibration and valid for stream indices [i0, i1) ∩ held samples."""
-        i0, pieces = self._pieces(i0, i1)
-        if not pieces:
-            return i0, np.empty(0), np.empty(0), np.empty(0, dtype=bool)
-        return (i0, np.concatenate([self.travel[p] for p in pieces]),
-                np.concatenate([self.vibration[p] for p in pieces]).astype(float),
-                np.concatenate([self.valid[p] for p in pieces]))
-
-    def first_exceedance(self, i0: int, threshold: float) -> int | None:
-        """Stream index of the first valid sample at or after ``i0`` with |vibration| ≥ threshold."""
-        i0, pieces = self._pieces(i0, self.end)
-        for p in pieces:
-            hits = np.flatnonzero((np.abs(self.vibration[p]) >= threshold) & self.valid[p])
-            if hits.size:
-                return i0 + int(hits[0])
-            i0 += p.stop - p.start
-        return None
-
-
 class TriggerDetector:
     """Chunk-by-chunk operation detector with a bounded pre-trigger ring buffer.
 
@@ -256,6 +197,7 @@ class TriggerDetector:
         self._scan = 0
         self._pending: int | None = None
         self._gaps: list[tuple[int, int]] = []  # (first missing index, count) still in the ring
+        self._settling: tuple | None = None  # last opening's (settled index, rest, swing)
 
     def _n(self, seconds: float) -> int:
         return int(round(seconds * self.fs))
@@ -278,7 +220,7 @@ class TriggerDetector:
             if self._expected is not None:
                 out += self.flush()
             self.ring.reset(first)
-            self._scan, self._pending, self._gaps = first, None, []
+            self._scan, self._pending, self._gaps, self._settling = first, None, [], None
         elif first > self._expected:
             self._gaps.append((self._expected, first - self._expected))
             out += self._skip(first - self._expected)
@@ -345,12 +287,17 @@ class TriggerDetector:
         n = self._n
         seg0, T, V, M = self.ring.get(shock - self.pre_n, shock + self.horizon_n)
         k = shock - seg0
-        S = _moving_average(T, max(1, n(s.smoothing_s)))
+        S = moving_average(T, max(1, n(s.smoothing_s)))
         thr_motion = s.motion_fraction * s.stroke_rad
         before = slice(max(0, k - n(s.baseline_s)), k)
         baseline = float(np.median(T[before][M[before]])) if M[before].any() else float(T[k])
+        threshold = thr_motion
+        if self._settling is not None and shock < self._settling[0]:
+            # The previous opening is still settling: its swing about rest is no operation.
+            _, baseline, swing = self._settling
+            threshold = thr_motion + swing
         dev = S[k:k + n(s.confirm_s)] - baseline
-        moved = np.flatnonzero(np.abs(dev) > thr_motion)
+        moved = np.flatnonzero(np.abs(dev) > threshold)
         hits = np.flatnonzero((np.abs(V[k:]) >= s.shock_threshold_g) & M[k:]) + k
         if moved.size == 0:  # a lone shock: skip past its ringing
             return None, seg0 + _cluster_end(hits, n(s.shock_cluster_gap_s))
@@ -359,6 +306,8 @@ class TriggerDetector:
         operation = OPEN if direction > 0 else CLOSE
         # The latch shock is the last shock cluster that starts before motion is confirmed.
         pre = hits[hits < c]
+        if pre.size == 0:  # already moving at the shock: this shock did not start it
+            return None, seg0 + _cluster_end(hits, n(s.shock_cluster_gap_s))
         breaks = np.flatnonzero(np.diff(pre) > n(s.shock_cluster_gap_s))
         k = int(pre[breaks[-1] + 1]) if breaks.size else int(pre[0])
         flags = []
@@ -366,19 +315,19 @@ class TriggerDetector:
         if arrived.size == 0:
             flags.append(END_NOT_REACHED)
             end = float(c + np.argmax(direction * S[c:])) if S.size > c else float(c)
-            level = float(S[int(end)])
         else:
             r = c + int(arrived[0])
             if direction > 0:
-                end, ok = self._opening_end(T, M, S, r)
+                end, ok = opening_end(T, M, S, r, s, self.fs)
             else:
-                end, ok = self._closing_end(T, M, S, r)
+                end, ok = closing_end(T, M, S, r, s, self.fs)
             if not ok:
                 flags.append(PEAK_FIT_FAILED)
-            level = float(S[min(int(round(end)), S.size - 1)])
-        stop, cut = self._capture_stop(S, int(np.ceil(end)), level, final)
+        stop, cut, settle = self._capture_stop(S, int(np.ceil(end)), baseline, direction)
         if cut:
             flags.append(NEXT_OPERATION)
+        if operation == OPEN:  # shocks while it settles are judged against its swing
+            self._settling = (seg0 + settle.settled, settle.rest, settle.swing)
         start = max(0, k - self.pre_n)
         if k < self.pre_n // 2:  # a little less than asked is normal for recorded files
             flags.append(SHORT_PRETRIGGER)
@@ -395,68 +344,31 @@ class TriggerDetector:
                                      self.fs, tuple(flags), capture)
         return detected, seg0 + int(np.ceil(end)) + n(s.rearm_s)
 
-    def _opening_end(self, T, M, S, r):
-        """Peak of the opening travel [fractional segment index] by a local cubic fit."""
+    def _capture_stop(self, S, end: int, baseline: float, direction: float):
+        """Segment index one past the capture's last sample, whether the next operation cut it,
+        and how the travel settled (``operation_end.Settling``)."""
         s = self.settings
         n = self._n
-        wide = _moving_average(T, max(1, n(1e-3)))
-        stop = min(S.size, r + n(s.max_operation_s))
-        # Stop the search where the travel falls back by the motion threshold (a new operation).
-        fall = np.maximum.accumulate(wide[r:stop]) - wide[r:stop]
-        back = np.flatnonzero(fall > s.motion_fraction * s.stroke_rad)
-        if back.size:
-            stop = r + int(back[0])
-        p0 = r + int(np.argmax(wide[r:stop]))
-        return _fit_peak(T, M, p0, n(s.peak_half_window_s))
-
-    def _closing_end(self, T, M, S, r):
-        """End of the cam rise [fractional segment index]: where the travel's approach to the
-        settled closed level ends, from a fit y = a·u² + b·u³ with u = max(t_e − t, 0)."""
-        s = self.settings
-        n = self._n
-        settle_n = n(s.settle_s)
-        tol = s.settle_fraction * s.stroke_rad
-        if S.size <= r + settle_n:
-            return float(r), False
-        change = np.abs(S[r:-settle_n] - S[r + settle_n:])
-        q = r + int(np.argmax(change < tol))
-        tail = slice(q, min(S.size, q + 2 * settle_n))
-        level = float(np.median(T[tail][M[tail]])) if M[tail].any() else float(S[q])
-        # Fit from where the travel was still closing_fit_fraction of the stroke above the level.
-        i0 = r - int(np.argmax(S[r::-1] - level >= s.closing_fit_fraction * s.stroke_rad))
-        i1 = min(T.size, q + 3 * settle_n)
-        keep = M[i0:i1]
-        t = np.arange(i0, i1, dtype=float)[keep]
-        y = T[i0:i1][keep] - level
-        if t.size < 16:
-            return float(q), False
-        # Coarse-to-fine search of t_e: 0.25 ms steps on every 4th sample, then finer.
-        step = max(4.0, round(0.25e-3 * self.fs))
-        grid = np.arange(i0, i1, step)
-        te = grid[np.argmin(_tangent_fit_sse(t[::4], y[::4], grid))]
-        for half, fine in ((step, step / 8), (step / 8, 0.5)):
-            grid = np.arange(te - half, te + half + 1e-9, fine)
-            te = grid[np.argmin(_tangent_fit_sse(t, y, grid))]
-        return float(te), True
-
-    def _capture_stop(self, S, end: int, level: float, final: bool):
-        """Segment index one past the capture's last sample, and whether the next operation cut it."""
-        s = self.settings
-        n = self._n
-        settle_n = n(s.settle_s)
-        tol = s.settle_fraction * s.stroke_rad
-        end = min(max(end, 0), S.size)
-        change = np.abs(S[end:S.size - settle_n] - S[end + settle_n:]) if S.size > end + settle_n else np.empty(0)
-        calm = np.flatnonzero(change < tol)
-        settled = end + int(calm[0]) if calm.size else end
-        stop = settled + n(s.post_s)
         thr_motion = s.motion_fraction * s.stroke_rad
-        away = np.flatnonzero(np.abs(S[end + n(s.rearm_s):stop] - level) > thr_motion)
+        end = min(max(end, 0), S.size - 1)
+        level = float(S[end])
+        # The settling swings about the end position by at most the overtravel: twice the
+        # distance from the end level to the nominal rest, plus the motion threshold.
+        reach = 2.0 * abs(level - (baseline + direction * s.stroke_rad)) + thr_motion
+        st = settling(S, end, reach, s, self.fs, limit=S.size - n(s.post_s))
+        stop = (st.settled if st.found else end) + n(s.post_s)
+        # A new operation: leaving the settling's reach before it settles, or the rest level after.
+        i0 = end + n(s.rearm_s)
+        idx = np.arange(i0, min(stop, S.size))
+        far = np.where(idx < st.settled, np.abs(S[i0:i0 + idx.size] - level) > reach,
+                       np.abs(S[i0:i0 + idx.size] - st.rest) > thr_motion)
+        away = np.flatnonzero(far)
         if away.size:  # the next operation has started: end where the travel left its rest level
-            leave = end + n(s.rearm_s) + int(away[0])
-            quiet = np.flatnonzero(np.abs(S[end:leave] - level) < 0.1 * thr_motion)
-            return end + (int(quiet[-1]) + 1 if quiet.size else leave - end), True
-        return stop, False
+            leave = i0 + int(away[0])
+            ref = st.rest if st.found and leave >= st.settled else level
+            quiet = np.flatnonzero(np.abs(S[end:leave] - ref) < 0.1 * thr_motion)
+            return end + (int(quiet[-1]) + 1 if quiet.size else leave - end), True, st
+        return stop, False, st
 
     def _capture(self, first, T, V, M, operation, shock, end, flags) -> Capture:
         travel = T.copy()
@@ -481,66 +393,12 @@ class TriggerDetector:
 
 # -- numerical helpers ---------------------------------------------------------------------------
 
-def _moving_average(x: np.ndarray, w: int) -> np.ndarray:
-    """Centred moving average of length ``w``; the ends use the nearest full window."""
-    if w <= 1 or x.size < w:
-        return x.astype(float, copy=True)
-    c = np.concatenate(([0.0], np.cumsum(x, dtype=float)))
-    core = (c[w:] - c[:-w]) / w
-    left = (w - 1) // 2
-    return np.concatenate((np.full(left, core[0]), core, np.full(x.size - core.size - left, core[-1])))
-
-
 def _cluster_end(hits: np.ndarray, gap: int) -> int:
     """Index one past the first cluster of exceedances (``hits`` sorted)."""
     if hits.size == 0:
         return 0
     breaks = np.flatnonzero(np.diff(hits) > gap)
     return int(hits[breaks[0]] if breaks.size else hits[-1]) + 1
-
-
-def _fit_peak(T, M, p0: int, half: int):
-    """Maximum of a cubic least-squares fit to the travel within ±``half`` samples of ``p0``,
-    re-centred once on the result. Returns (fractional index, fit succeeded)."""
-    ok = False
-    peak = float(p0)
-    for _ in range(3):
-        lo, hi = max(0, p0 - half), min(T.size, p0 + half + 1)
-        keep = M[lo:hi]
-        if keep.sum() < 16:
-            return peak, ok
-        x = (np.arange(lo, hi)[keep] - p0) / half
-        c = np.polynomial.polynomial.polyfit(x, T[lo:hi][keep], 3)
-        roots = np.roots([3 * c[3], 2 * c[2], c[1]]) if abs(c[3]) > 1e-12 else (
-            np.array([-c[1] / (2 * c[2])]) if c[2] else np.empty(0))
-        roots = [float(z.real) for z in np.atleast_1d(roots)
-                 if abs(z.imag) < 1e-12 and abs(z.real) <= 1.0 and 2 * c[2] + 6 * c[3] * z.real < 0]
-        if not roots:
-            return peak, ok
-        x_peak = min(roots, key=abs)
-        peak, ok = p0 + x_peak * half, True
-        if abs(x_peak * half) < 1.0:
-            break
-        p0 = int(round(peak))
-    return peak, ok
-
-
-def _tangent_fit_sse(t: np.ndarray, y: np.ndarray, candidates: np.ndarray) -> np.ndarray:
-    """Residual sum of squares of y ≈ a·u² + b·u³, u = max(t_e − t, 0), for each candidate t_e.
-
-    The travel arrives tangentially at the closed level (the cam rise ends with zero slope),
-    hence no constant or linear term.
-    """
-    u = np.maximum(candidates[:, None] - t[None, :], 0.0) / 128.0  # scaled for conditioning
-    u2 = u * u
-    u3 = u2 * u
-    s44, s45, s55 = (u2 * u2).sum(1), (u2 * u3).sum(1), (u3 * u3).sum(1)
-    r2, r3 = u2 @ y, u3 @ y
-    det = s44 * s55 - s45 * s45
-    safe = np.where(np.abs(det) > 1e-300, det, np.inf)
-    a = (r2 * s55 - r3 * s45) / safe
-    b = (s44 * r3 - s45 * r2) / safe
-    return float(y @ y) - (a * r2 + b * r3)
 
 
 def detect_capture(capture: Capture, settings: TriggerSettings, *,

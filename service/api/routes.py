@@ -445,6 +445,12 @@ def _scada_points(session, settings) -> list[s.ScadaPoint]:
     return points
 
 
+# Refits (hvcb refit through the API, admins only): their routes live with the refit package.
+from service.refit.api import router as _refit_router  # noqa: E402
+
+router.include_router(_refit_router)
+
+
 # -- keys --------------------------------------------------------------------------------------
 @router.get("/keys", response_model=list[s.ApiKeyPublic], responses=AUTH, tags=["keys"])
 def list_keys(session: SessionDep, _: AdminDep):

@@ -42,7 +42,9 @@ class CMAResult:
 def minimize(evaluate: Callable[[np.ndarray], np.ndarray], dimension: int, *, seed: int,
              x0=None, sigma0: float = 0.3, popsize: int | None = None,
              rules: StoppingRules = StoppingRules(), record: bool = False,
-             edge_dims: tuple = (), edge: float = 0.01, edge_sigma: float = 0.05) -> CMAResult:
+             edge_dims: tuple = (), edge: float = 0.01, edge_sigma: float = 0.05,
+             target: float | None = None, target_window: int = 3,
+             target_rtol: float = 2e-3, score_start: bool = False) -> CMAResult:
     """Minimise ``evaluate`` over the unit cube [0, 1]^dimension.
 
     Parameters
@@ -56,6 +58,13 @@ def minimize(evaluate: Callable[[np.ndarray], np.ndarray], dimension: int, *, se
         Dimensions whose range may be re-adapted: once the mean is pinned within ``edge`` of a
         bound with a step size below ``edge_sigma``, the run stops (``edge``) so the caller can
         move the range instead of converging against the bound.
+    target : float, optional
+        Early stop (``noise_floor``): once the best value is at or below ``target`` and has
+        improved by less than ``target_rtol`` (relative) over ``target_window`` iterations. At
+        the noise floor CMA-ES only shuffles noise; the local polish finishes faster.
+    score_start : bool
+        Score ``x0`` first and keep it as the best so far (a warm start that is already at
+        the noise floor then ends the search within ``target_window`` iterations).
     """
     if seed is None:
         raise ValueError("an explicit seed is required")
@@ -71,6 +80,13 @@ def minimize(evaluate: Callable[[np.ndarray], np.ndarray], dimension: int, *, se
     reason = "max_iterations"
     it = 0
     evaluations = 0
+    if score_start:
+        start = np.clip(best_x, 0.0, 1.0)
+        f0 = float(np.asarray(evaluate(start[None, :]), dtype=float)[0])
+        evaluations += 1
+        if np.isfinite(f0):
+            best_x, best_f = start, f0
+        best_hist.append(best_f)
     while it < rules.max_iterations:
         it += 1
         arx = es.ask()  # plain floats: purecma's arithmetic is slow on numpy scalars
@@ -78,11 +94,13 @@ def minimize(evaluate: Callable[[np.ndarray], np.ndarray], dimension: int, *, se
         inside = np.clip(X, 0.0, 1.0)
         f = np.asarray(evaluate(inside), dtype=float)
         evaluations += len(X)
-        worst = np.nanmax(np.where(np.isfinite(f), f, np.nan)) if np.any(np.isfinite(f)) else 1e6
-        f = np.where(np.isfinite(f), f, 10.0 * abs(worst) + 1.0)
+        finite = np.isfinite(f)
+        if not finite.all():
+            worst = np.max(f[finite]) if finite.any() else 1e6
+            f = np.where(finite, f, 10.0 * abs(worst) + 1.0)
         penalised = f + np.sum((X - inside) ** 2, axis=1)
         es.tell(arx, penalised.tolist())
-        k = int(np.argmin(f + np.sum((X - inside) ** 2, axis=1)))
+        k = int(np.argmin(penalised))
         if f[k] < best_f and np.all(X[k] == inside[k]):
             best_f, best_x = float(f[k]), inside[k].copy()
         best_hist.append(best_f)
@@ -96,6 +114,13 @@ def minimize(evaluate: Callable[[np.ndarray], np.ndarray], dimension: int, *, se
         w = rules.tol_fun_window
         if len(best_hist) > w and best_hist[-w - 1] - best_hist[-1] < rules.tol_fun:
             reason = "tol_fun"
+            break
+        # At the noise floor but on a re-adaptable edge: let the edge rule move the range.
+        on_edge = any(best_x[d] < edge or best_x[d] > 1 - edge for d in edge_dims)
+        if (target is not None and best_f <= target and len(best_hist) > target_window
+                and best_hist[-target_window - 1] - best_f <= target_rtol * best_f
+                and not on_edge):
+            reason = "noise_floor"
             break
         if es.sigma < rules.tol_sigma:
             reason = "tol_sigma"

@@ -9,6 +9,7 @@ Closing: AC, BC, CC (and τ) with DC fixed to the breaker's latest opening AO.
 from __future__ import annotations
 
 import time
+from functools import partial
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -21,8 +22,13 @@ from . import cmaes
 from .curves import ClosingCurves, OpeningCurves, weighted_rmse
 from .parameter_space import ParameterSpace
 from .result import FitResult
-from .uncertainty import Z95, covariance, polish
+from .polish import batched_jacobian, polish
+from .uncertainty import Z95, covariance
+from .warm_start import Prior, sigma0, warm_space
 from .window import FitError, FitWindow, decimate, prepare_window
+
+_TAU_SCAN = 21  # onset-delay candidates scored when the prior has none
+WARM_STALL = 2  # iterations without gain at the noise floor that end a warm CMA-ES run
 
 Evaluator = Callable[[Callable, np.ndarray], np.ndarray]
 
@@ -51,6 +57,19 @@ class FitSettings:
     polish : bool
         Run the local least-squares polish after CMA-ES.
     rules : cmaes.StoppingRules
+    noise_floor_blocks : float
+        CMA-ES stops early once the block means' residual sum of squares is within this many
+        times its expectation at the true parameters (one noise variance per block): the warm
+        search's early stop.
+    search_floor_blocks : float
+        The same, looser, for the cold search's opening stage 1 and closing search, which a
+        least-squares step then finishes (opening stage 2 keeps ``noise_floor_blocks``).
+    fallback_factor : float
+        A warm start whose polished RMSE stays above this factor of the noise floor (or of the
+        prior's own ratio) is discarded for the full cold search.
+    random_start : bool
+        Cold search starts at a random point of the ranges (the paper's protocol) instead of
+        their centre.
     """
 
     block_open: int = 32
@@ -62,11 +81,15 @@ class FitSettings:
     max_readaptations: int = 8
     polish: bool = True
     rules: cmaes.StoppingRules = field(default_factory=cmaes.StoppingRules)
+    noise_floor_blocks: float = 2.0
+    search_floor_blocks: float = 20.0
+    fallback_factor: float = 1.5
+    random_start: bool = False
 
 
 def fit_capture(capture: Capture, breaker: Breaker, operation: str, *, dc: float | None = None,
                 seed: int = 1, settings: FitSettings = FitSettings(),
-                evaluator: Evaluator = evaluate_locally) -> FitResult:
+                evaluator: Evaluator = evaluate_locally, prior: Prior | None = None) -> FitResult:
     """Estimate the model parameters of one operation.
 
     Parameters
@@ -83,6 +106,9 @@ def fit_capture(capture: Capture, breaker: Breaker, operation: str, *, dc: float
     evaluator : callable
         ``evaluator(score, X) -> f``; inject a pool here. The default scores the population
         in one vectorised call.
+    prior : Prior, optional
+        Warm start (previous fit or design values, see ``warm_start``). Without one, the cold
+        search over the breaker file's ranges (the paper's protocol).
 
     Raises
     ------
@@ -93,18 +119,38 @@ def fit_capture(capture: Capture, breaker: Breaker, operation: str, *, dc: float
         raise FitError(f"operation must be 'open' or 'close', got {operation!r}")
     t0 = time.perf_counter()
     window = prepare_window(capture, breaker, operation)
-    if operation == "open":
-        result = _fit_opening(window, breaker, seed, settings, evaluator)
-    else:
+    if operation == "close":
         if dc is None:
             dc, dc_source = breaker.design_parameters()["DC"], "breaker file"
         else:
             dc_source = "opening fit"
         if not np.isfinite(dc) or dc <= 0:
             raise FitError(f"DC must be a positive number of s^-2, got {dc}")
-        result = _fit_closing(window, breaker, float(dc), seed, settings, evaluator)
-        result.dc_used, result.dc_source = float(dc), dc_source
-    result.rmse_rad = _rmse_at_samples(capture, breaker, result, window)
+        dc = float(dc)
+    if prior is not None and (prior.operation != operation or not prior.usable()):
+        prior = None
+    fit_one = _fit_opening if operation == "open" else partial(_fit_closing, dc=dc)
+    result, fallback = None, None
+    if prior is not None:
+        result = fit_one(window, breaker, seed, settings, evaluator, prior=prior)
+        result.rmse_rad = _rmse_at_samples(capture, breaker, result, window, dc)
+        ratio = result.rmse_rad / window.noise_rad
+        limit = max(settings.fallback_factor, 1.2 * (prior.rmse_ratio or 0.0))
+        if ratio > limit:
+            # A poor prior must not decide the answer: search the whole ranges instead.
+            fallback = {"warm_start": prior.source, "rmse_over_noise": float(ratio),
+                        "evaluations": result.evaluations}
+            result = None
+    if result is None:
+        result = fit_one(window, breaker, seed, settings, evaluator)
+        result.rmse_rad = _rmse_at_samples(capture, breaker, result, window, dc)
+        if fallback is not None:
+            result.evaluations += fallback["evaluations"]
+            result.stages.insert(0, {"fallback": fallback})
+            result.start = f"cold search (warm start from {prior.source} left " \
+                           f"{fallback['rmse_over_noise']:.1f}× the noise floor)"
+    if operation == "close":
+        result.dc_used, result.dc_source = dc, dc_source
     result.fitness = 1.0 / result.rmse_rad if result.rmse_rad > 0 else float("inf")
     result.characteristics = travel_characteristics(
         capture.t, capture.travel, operation, stroke=breaker.stroke, t_start=window.t_start,
@@ -121,13 +167,17 @@ def fit_capture(capture: Capture, breaker: Breaker, operation: str, *, dc: float
     return result
 
 
-def _search(score, space: ParameterSpace, seed: int, settings: FitSettings, evaluator, fixed=("tau",)):
+def _search(score, space: ParameterSpace, seed: int, settings: FitSettings, evaluator, fixed=("tau",),
+            target: float | None = None):
     """CMA-ES with range re-adaptation until every estimate is interior (paper steps 5–6)."""
     evaluations, readapt, stages = 0, 0, []
+    x0 = None
+    if settings.random_start:
+        x0 = np.random.default_rng(seed).uniform(0.0, 1.0, len(space.names))
     while True:
         res = cmaes.minimize(lambda U: evaluator(lambda X: score(space.to_physical(X)), U),
                              len(space.names), seed=seed + readapt, sigma0=settings.sigma0,
-                             rules=settings.rules,
+                             rules=settings.rules, x0=x0 if readapt == 0 else None, target=target,
                              edge_dims=tuple(i for i, n in enumerate(space.names) if n not in fixed))
         evaluations += res.evaluations
         x = space.to_physical(res.x_best)
@@ -145,7 +195,8 @@ def _search(score, space: ParameterSpace, seed: int, settings: FitSettings, eval
         readapt += 1
 
 
-def _fit_opening(window: FitWindow, breaker: Breaker, seed, settings, evaluator) -> FitResult:
+def _fit_opening(window: FitWindow, breaker: Breaker, seed, settings, evaluator,
+                 prior: Prior | None = None) -> FitResult:
     grid = decimate(window.t, window.y, settings.block_open)
     above = np.nonzero(grid.y > breaker.alpha0)[0]
     if above.size == 0:
@@ -154,14 +205,41 @@ def _fit_opening(window: FitWindow, breaker: Breaker, seed, settings, evaluator)
     n1 = int(above[0])
     if n1 < 8:
         raise FitError("too few samples before buffer engagement to fit the opening spring")
+    full = OpeningCurves(breaker, grid)
+    ss_full = _within_ss(grid, window)
+    target = _floor_target(grid, window, settings.noise_floor_blocks)
+    names = list(OPENING_PARAMETERS) + ["tau"]
+    scale = np.array([3000.0, 5000.0, 30.0, 5000.0, 1e-3])
+    lower = np.array([1.0, 1.0, 0.0, 0.0, 0.0])
+    upper = np.array([1e6, 1e6, 1e4, 1e6, settings.tau_max])
+
+    def residual_rows(X):
+        return grid.weight[None, :] * (full.full(X) - grid.y[None, :])
+
+    if prior is not None:
+        x, evaluations, stages, ranges, polished = _warm_search(
+            lambda X: weighted_rmse(full.full(X), grid, ss_full), residual_rows,
+            (lower, upper, scale), prior, tuple(names), seed, settings, evaluator, target)
+        return _finish("open", names, x, residual_rows, scale, lower, upper, window, settings,
+                       evaluations, 0, stages, [], ranges, start=f"warm start from {prior.source}",
+                       polished=polished)
+
     ranges = dict(breaker.ranges, tau=(0.0, settings.tau_max))
     pre = OpeningCurves(breaker, _subgrid(grid, n1))
-    full = OpeningCurves(breaker, grid)
-
     space1 = ParameterSpace.from_ranges(("AO", "BO", "tau"), ranges)
-    ss_pre, ss_full = _within_ss(pre.grid, window), _within_ss(grid, window)
+    ss_pre = _within_ss(pre.grid, window)
     x1, space1, ev1, ra1, st1, hit1 = _search(
-        lambda X: weighted_rmse(pre.pre_buffer(X), pre.grid, ss_pre), space1, seed, settings, evaluator)
+        lambda X: weighted_rmse(pre.pre_buffer(X), pre.grid, ss_pre), space1, seed, settings,
+        evaluator, target=_floor_target(pre.grid, window, settings.search_floor_blocks))
+    if settings.polish and not hit1:
+        # CMA-ES stopped in the basin; the least-squares step finds its bottom, so stage 2 fits
+        # DO, EO against the right AO, BO (as a fully converged stage 1 would give).
+        k = [0, 1, 4]
+        pre_rows = lambda X: pre.grid.weight[None, :] * (pre.pre_buffer(X) - pre.grid.y[None, :])  # noqa: E731
+        pol = polish(pre_rows, x1, lower[k], upper[k], scale[k], max_nfev=30)
+        ev1 += pol.evaluations
+        if pol.success and np.sum(pre_rows(pol.x[None, :]) ** 2) <= np.sum(pre_rows(x1[None, :]) ** 2):
+            x1 = pol.x
     AO, BO, tau = x1
 
     def score2(X):
@@ -169,59 +247,117 @@ def _fit_opening(window: FitWindow, breaker: Breaker, seed, settings, evaluator)
         return weighted_rmse(full.full(full_X), grid, ss_full)
 
     space2 = ParameterSpace.from_ranges(("DO", "EO"), ranges)
-    x2, space2, ev2, ra2, st2, hit2 = _search(score2, space2, seed + 1000, settings, evaluator, fixed=())
+    # Stage 2 keeps the tight target: it decides whether EO's range must move (steps 5–6).
+    x2, space2, ev2, ra2, st2, hit2 = _search(score2, space2, seed + 1000, settings, evaluator,
+                                              fixed=(), target=target)
     x = np.array([AO, BO, x2[0], x2[1], tau])
-    names = list(OPENING_PARAMETERS) + ["tau"]
-    scale = np.array([3000.0, 5000.0, 30.0, 5000.0, 1e-3])
-    lower = np.array([1.0, 1.0, 0.0, 0.0, 0.0])
-    upper = np.array([1e6, 1e6, 1e4, 1e6, settings.tau_max])
-
-    def residuals(p):
-        return grid.weight * (full.full(p[None, :])[0] - grid.y)
-
-    return _finish("open", names, x, residuals, scale, lower, upper, window, settings,
+    return _finish("open", names, x, residual_rows, scale, lower, upper, window, settings,
                    ev1 + ev2, ra1 + ra2, st1 + st2, hit1 + hit2,
                    {**space1.as_dict(), **space2.as_dict()})
 
 
-def _fit_closing(window: FitWindow, breaker: Breaker, dc, seed, settings, evaluator) -> FitResult:
+def _fit_closing(window: FitWindow, breaker: Breaker, seed, settings, evaluator,
+                 prior: Prior | None = None, *, dc: float) -> FitResult:
     grid = decimate(window.t, window.y, settings.block_close)
     # Two fidelities: CMA-ES searches with coarse RK4 steps; the polish and the uncertainty use
     # the accurate step, so the reported estimate carries no step-size bias.
     search = ClosingCurves(breaker, decimate(window.t, window.y, settings.block_close_search), dc,
                            dt_max=settings.search_step_close)
     exact = ClosingCurves(breaker, grid, dc)
-    ranges = dict(breaker.ranges, tau=(0.0, settings.tau_max))
-    space = ParameterSpace.from_ranges(("AC", "BC", "CC", "tau"), ranges)
     ss = _within_ss(search.grid, window)
-    x, space, ev, ra, st, hit = _search(lambda X: weighted_rmse(search.full(X), search.grid, ss),
-                                        space, seed, settings, evaluator)
+    target = _floor_target(search.grid, window, settings.noise_floor_blocks)
     names = list(CLOSING_PARAMETERS) + ["tau"]
     scale = np.array([20000.0, 2.0, 10000.0, 1e-3])
     lower = np.array([1.0, 1e-3, 0.0, 0.0])
     upper = np.array([1e7, 100.0, 1e6, settings.tau_max])
 
-    def residuals(p):
-        return grid.weight * (exact.full(p[None, :])[0] - grid.y)
+    def residual_rows(X):
+        return grid.weight[None, :] * (exact.full(X) - grid.y[None, :])
 
-    return _finish("close", names, x, residuals, scale, lower, upper, window, settings,
+    def score(X):
+        return weighted_rmse(search.full(X), search.grid, ss)
+
+    if prior is not None:
+        x, evaluations, stages, ranges, polished = _warm_search(
+            score, residual_rows, (lower, upper, scale), prior, tuple(names), seed, settings,
+            evaluator, target)
+        return _finish("close", names, x, residual_rows, scale, lower, upper, window, settings,
+                       evaluations, 0, stages, [], ranges, start=f"warm start from {prior.source}",
+                       polished=polished)
+    ranges = dict(breaker.ranges, tau=(0.0, settings.tau_max))
+    space = ParameterSpace.from_ranges(("AC", "BC", "CC", "tau"), ranges)
+    x, space, ev, ra, st, hit = _search(
+        score, space, seed, settings, evaluator,
+        target=_floor_target(search.grid, window, settings.search_floor_blocks))
+    return _finish("close", names, x, residual_rows, scale, lower, upper, window, settings,
                    ev, ra, st, hit, space.as_dict())
 
 
-def _finish(operation, names, x, residuals, scale, lower, upper, window, settings,
-            evaluations, readaptations, stages, edge_hits, ranges) -> FitResult:
+def _warm_search(score, residual_rows, bounds, prior: Prior, names: tuple, seed, settings,
+                 evaluator, target):
+    """The warm path: a least-squares step from the prior, then CMA-ES around it.
+
+    The landscape is narrow (1 % off in the springs is already about 3× the noise floor), so a
+    prior is first pulled into its basin by the polish. CMA-ES then searches the box around
+    the prior with a σ0 matched to the prior's spread, starting from the best point so far; it
+    ends at the noise floor within ``WARM_STALL`` iterations when that point is already there.
+    Returns (x, evaluations, stages, ranges, polished) with ``polished`` True when x is the
+    polish's own answer.
+    """
+    lower, upper, scale = bounds
+    space, u0 = warm_space(prior, names, settings.tau_max)
+    evaluations = 0
+
+    def score_unit(U):
+        return evaluator(lambda X: score(space.to_physical(X)), U)
+
+    if prior.onset_delay_s is None:
+        # Design values say nothing about the onset delay: scan it at the prior in one call.
+        U = np.repeat(u0[None, :], _TAU_SCAN, axis=0)
+        U[:, -1] = np.linspace(0.0, 1.0, _TAU_SCAN)
+        u0[-1] = U[int(np.nanargmin(score_unit(U))), -1]
+        evaluations += _TAU_SCAN
+    pol = polish(residual_rows, space.to_physical(u0), lower, upper, scale, max_nfev=30)
+    evaluations += pol.evaluations
+    u_lm = space.to_unit(pol.x)
+    start, polished = u0, False
+    if pol.success and np.all((u_lm >= 0) & (u_lm <= 1)):
+        f_lm = float(score_unit(u_lm[None, :])[0])
+        evaluations += 1
+        if f_lm <= target:
+            start, polished = u_lm, True
+    res = cmaes.minimize(score_unit, len(names), seed=seed, x0=start, sigma0=sigma0(prior),
+                         rules=settings.rules, target=target, target_window=WARM_STALL,
+                         score_start=True)
+    evaluations += res.evaluations
+    polished = polished and np.array_equal(res.x_best, np.clip(start, 0.0, 1.0))
+    stage = {"ranges": space.as_dict(), "iterations": res.iterations,
+             "evaluations": res.evaluations, "stop": res.stop_reason,
+             "rmse_grid_rad": float(res.f_best), "warm_start": prior.source,
+             "prior_in_basin": bool(start is not u0)}
+    x = pol.x if polished else space.to_physical(res.x_best)
+    return x, evaluations, [stage], space.as_dict(), polished
+
+
+def _finish(operation, names, x, residual_rows, scale, lower, upper, window, settings,
+            evaluations, readaptations, stages, edge_hits, ranges, start="cold search",
+            polished=False) -> FitResult:
     warnings = []
     if edge_hits:
         warnings.append(f"estimates still on a search-range edge after {readaptations} "
                         f"re-adaptations: {', '.join(sorted(set(edge_hits)))}")
-    if settings.polish:
-        pol = polish(residuals, x, lower, upper, scale)
+
+    def sse(p):
+        r = residual_rows(p[None, :])[0]
+        return float(np.sum(r * r))
+
+    if settings.polish and not polished:
+        pol = polish(residual_rows, x, lower, upper, scale)
         evaluations += pol.evaluations
-        if pol.success and np.sum(residuals(pol.x) ** 2) <= np.sum(residuals(x) ** 2):
+        if pol.success and sse(pol.x) <= sse(x):
             x = pol.x
-        jac = pol.jacobian
-    else:
-        jac = _jacobian(residuals, x, scale)
+    # The covariance needs the Jacobian at the reported estimate itself.
+    jac = batched_jacobian(residual_rows, x, scale, lower, upper)[1]
     unc = covariance(jac, window.noise_rad, scale, n_model=len(names) - 1)
     if x[-1] <= lower[-1] + 1e-9 or x[-1] >= upper[-1] - 1e-9:
         warnings.append(f"the onset delay sits on its bound ({x[-1] * 1e3:.2f} ms): the start of "
@@ -237,18 +373,19 @@ def _finish(operation, names, x, residuals, scale, lower, upper, window, setting
         fitness=float("nan"), window_s=(window.t_start, window.t_end), onset_delay_s=float(x[-1]),
         noise_rad=window.noise_rad, evaluations=int(evaluations), runtime_s=0.0,
         identifiable=unc.identifiable, condition_number=unc.condition_number, ranges=ranges,
-        readaptations=readaptations, stages=stages, warnings=warnings)
+        readaptations=readaptations, stages=stages, warnings=warnings, start=start)
 
 
-def _jacobian(residuals, x, scale):
-    r0 = residuals(x)
-    J = np.empty((r0.size, x.size))
-    for i in range(x.size):
-        h = 1e-6 * scale[i]
-        xp = x.copy()
-        xp[i] += h
-        J[:, i] = (residuals(xp) - r0) / h
-    return J
+def _floor_target(grid, window: FitWindow, blocks: float) -> float:
+    """The grid RMSE [rad] that counts as "at the noise floor" for the early stop.
+
+    At the true parameters each block mean misses the model by noise alone, so the blocks add
+    about one noise variance each to the within-block scatter; the target allows
+    ``blocks`` of them.
+    """
+    n = float(np.sum(grid.count))
+    excess = blocks * grid.y.size * window.noise_rad**2
+    return float(np.sqrt((_within_ss(grid, window) + excess) / n))
 
 
 def _within_ss(grid, window: FitWindow) -> float:
@@ -262,11 +399,11 @@ def _subgrid(grid, n):
     return Grid(grid.t[:n], grid.y[:n], grid.count[:n], grid.spread[:n])
 
 
-def _rmse_at_samples(capture, breaker, result: FitResult, window: FitWindow) -> float:
+def _rmse_at_samples(capture, breaker, result: FitResult, window: FitWindow, dc=None) -> float:
     """The reported RMSE: model against every measured sample of the valid interval."""
     x = [result.parameters[k] for k in result.parameter_names[:-1]] + [result.onset_delay_s]
     if result.operation == "open":
         theta = OpeningCurves.at(window.t, x, breaker)
     else:
-        theta = ClosingCurves.at(window.t, x, breaker, result.dc_used)
+        theta = ClosingCurves.at(window.t, x, breaker, dc)
     return float(np.sqrt(np.mean((theta - window.y) ** 2)))

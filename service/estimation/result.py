@@ -50,6 +50,8 @@ class FitResult:
     warnings : list of str
     characteristics : dict
         Classic travel characteristics of the measured curve.
+    start : str
+        How the search started: ``cold search`` or ``warm start from …``.
     """
 
     operation: str
@@ -74,6 +76,7 @@ class FitResult:
     stages: list = field(default_factory=list)
     warnings: list = field(default_factory=list)
     characteristics: dict = field(default_factory=dict)
+    start: str = "cold search"
 
     def to_dict(self) -> dict:
         out = {
@@ -97,6 +100,7 @@ class FitResult:
             "stages": self.stages,
             "warnings": list(self.warnings),
             "characteristics": self.characteristics,
+            "start": self.start,
         }
         if self.operation == "close":
             out["dc_used"] = float(self.dc_used)

@@ -135,10 +135,7 @@ def prepare_window(capture: Capture, breaker: Breaker, operation: str) -> FitWin
         noise = float(np.median(np.abs(d - np.median(d))) * 1.4826 / np.sqrt(2))
         noise_source = "differences"
     noise = max(noise, 1e-7)
-    i_end, t_end = _peak(y, smooth, i_move, fs, operation, noise, stroke)
-    if i_end >= y.size - 2:
-        raise FitError(f"{src}: the capture ends before the {operation_word(operation)} reaches its "
-                       "end position (truncated capture)")
+    i_end, t_end = _peak(y, smooth, i_move, fs, operation, noise, stroke, src)
     _check_saturation(capture, i_shock, i_end, src)
     t_start = i_shock / fs
     sl = slice(i_shock, i_end + 1)
@@ -180,28 +177,47 @@ def _find_shock(capture: Capture, i_move: int, fs: float, operation: str):
     return lo + int(hit[0]), True
 
 
-def _peak(y, smooth, i_move, fs, operation, noise, stroke):
-    """Index and time [s] of the maximum of the operation coordinate."""
+def _peak(y, smooth, i_move, fs, operation, noise, stroke, src):
+    """Index and time [s] of the maximum of the operation coordinate.
+
+    A capture may stop exactly at the maximum (the paper's valid interval): that end is complete
+    when the speed there is near zero (see :func:`end_speed`); still moving is a truncated capture.
+    """
     n_edge = max(int(fs * 0.5e-3), 1)  # the smoothing is padded at the ends: keep out of them
     search = smooth[i_move: max(y.size - n_edge, i_move + 1)]
     i_max = i_move + int(np.argmax(search))
+    word = operation_word(operation)
     if operation == "close":
         # The cam dwell holds θ2 at its maximum: the end is where the rise reaches the settled
         # level, taken robustly from the tail after the motion (not from one noisy sample).
         motion = y[i_move:]
         if float(np.median(motion[-max(motion.size // 4, 8):])) < 0.8 * stroke:
-            raise FitError("the closing never reaches its end position within the capture "
+            raise FitError(f"{src}: the closing never reaches its end position within the capture "
                            "(truncated capture or the breaker did not close)")
-        return _arrival(y, search, i_move, fs, noise, n_edge)
-    if i_max >= y.size - n_edge - int(0.002 * fs):
-        # No interior peak: an over-damped opening creeps to rest without overtravel. That is
-        # a valid end (where it arrives at rest); still moving at the end is a truncated capture.
-        last = y[-int(0.005 * fs):]
-        drift = abs(np.polyfit(np.arange(last.size) / fs, last, 1)[0]) * 0.005
-        if drift > max(0.002 * stroke, 4.0 * noise / np.sqrt(last.size)):
-            raise FitError("the capture ends before the opening reaches its maximum travel "
-                           "(truncated capture)")
-        return _arrival(y, search, i_move, fs, noise, n_edge)
+        end = end_speed(y, smooth, i_move, fs)
+        if end.moving:
+            raise FitError(_truncated_message(src, word, end))
+        i_end, t_end = _arrival(y, search, i_move, fs, noise, n_edge)
+        if not _settled(y, i_end, fs):
+            # No dwell to read the settled level from: the capture stops at the end of the
+            # rise, so its last sample is the end.
+            return y.size - 1, (y.size - 1) / fs
+        return i_end, t_end
+    if i_max >= y.size - n_edge - int(END_FIT_S * fs):
+        # No peak well inside the capture (a flat top puts the noisy argmax a few ms early):
+        # the capture stops at (or just after) the maximum, or an over-damped opening creeps
+        # to rest without overtravel. Both are complete if the end speed is near
+        # zero; still moving at the end is a truncated capture.
+        end = end_speed(y, smooth, i_move, fs)
+        if end.moving:
+            raise FitError(_truncated_message(src, word, end))
+        i_end, t_end = _arrival(y, search, i_move, fs, noise, n_edge)
+        if _settled(y, i_end, fs):
+            return i_end, t_end  # crept to rest well before the capture ends
+        if end.falling:  # the capture runs on past the maximum: end at the fitted top
+            t_top = (y.size - 1) / fs + end.t_vertex
+            return int(round(t_top * fs)), t_top
+        return y.size - 1, (y.size - 1) / fs
     half = int(0.006 * fs)
     lo, hi = max(i_max - half, i_move), min(i_max + half, y.size - 1)
     tt = (np.arange(lo, hi + 1) - i_max) / fs
@@ -211,6 +227,79 @@ def _peak(y, smooth, i_move, fs, operation, noise, stroke):
     roots = roots[(roots > tt[0]) & (roots < tt[-1]) & (np.polyval(np.polyder(coef, 2), roots) < 0)]
     t_peak = (i_max + (roots[np.argmin(np.abs(roots))] * fs if roots.size else 0.0)) / fs
     return int(round(t_peak * fs)), float(t_peak)
+
+
+# Span of the end-speed polynomial [s], and the end speed that still counts as zero, as a
+# fraction of the stroke's peak speed: a curve cut at its maximum reads within ±2 % at 50 dB,
+# one cut 10 ms early 5–30 %.
+END_FIT_S = 4e-3
+NEAR_ZERO = 0.03
+
+
+@dataclass(frozen=True)
+class EndSpeed:
+    """Speed of the operation coordinate at the capture's last sample.
+
+    Attributes
+    ----------
+    speed : float
+        From a quadratic fitted to the last ``END_FIT_S`` [rad/s]; positive = still rising.
+    stderr : float
+        Its standard error from the fit residuals [rad/s].
+    peak_speed : float
+        Largest 1 ms average speed of the motion [rad/s].
+    t_vertex : float
+        Time of the quadratic's maximum relative to the last sample, within [-END_FIT_S, 0] [s].
+    """
+
+    speed: float
+    stderr: float
+    peak_speed: float
+    t_vertex: float
+
+    @property
+    def moving(self) -> bool:
+        """Still moving: the speed is significantly (2 standard errors) above near-zero."""
+        return self.speed - 2.0 * self.stderr > NEAR_ZERO * self.peak_speed
+
+    @property
+    def falling(self) -> bool:
+        """Significantly (2 standard errors) past the maximum at the last sample."""
+        return self.speed + 2.0 * self.stderr < 0.0
+
+
+def end_speed(y, smooth, i_move: int, fs: float) -> EndSpeed:
+    """Judge the end of a capture: speed at the last sample of ``y`` [rad] sampled at ``fs`` [Hz]."""
+    n = max(int(END_FIT_S * fs), 8)
+    n = min(n, y.size - i_move)
+    tt = (np.arange(n) - (n - 1)) / fs
+    coef, cov = np.polyfit(tt, y[-n:], 2, cov="unscaled")
+    resid = y[-n:] - np.polyval(coef, tt)
+    var = float(np.sum(resid**2)) / max(n - 3, 1)
+    speed, stderr = float(coef[1]), float(np.sqrt(max(cov[1, 1], 0.0) * var))
+    k = max(int(1e-3 * fs), 1)
+    motion = smooth[i_move:]
+    peak = float(np.max(motion[k:] - motion[:-k])) * fs / k if motion.size > k else 0.0
+    t_vertex = -coef[1] / (2.0 * coef[0]) if coef[0] < 0 else 0.0
+    return EndSpeed(speed, stderr, max(peak, 0.0), float(np.clip(t_vertex, tt[0], 0.0)))
+
+
+def _settled(y, i_arrival: int, fs: float) -> bool:
+    """Whether the motion rests after ``i_arrival``: at least ``END_FIT_S`` of samples whose
+    trend is not significantly (3 standard errors) rising. A slow approach to a maximum the
+    capture stops at comes within noise of its tail early but keeps rising."""
+    rest = y[i_arrival:]
+    if rest.size < END_FIT_S * fs or rest.size < 8:
+        return False
+    tt = np.arange(rest.size) / fs
+    coef, cov = np.polyfit(tt, rest, 1, cov=True)
+    return bool(coef[0] <= 3.0 * np.sqrt(max(cov[0, 0], 0.0)))
+
+
+def _truncated_message(src, word, end: EndSpeed) -> str:
+    return (f"{src}: the capture ends before the {word} reaches its maximum travel: it is still "
+            f"moving at {end.speed:.2f} rad/s ({100 * end.speed / max(end.peak_speed, 1e-9):.0f} % of its peak "
+            "speed) at the last sample (truncated capture)")
 
 
 def _arrival(y, search, i_move, fs, noise, n_edge):

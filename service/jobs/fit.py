@@ -8,6 +8,7 @@ only one attempt can win, so a job run twice lands its result exactly once.
 from __future__ import annotations
 
 import importlib
+import inspect
 import logging
 import os
 import socket
@@ -84,11 +85,16 @@ def run_fit_job(operation_id: int, options: JobOptions | dict) -> dict:
                 dc, dc_source = float(opening.parameters["AO"]), f"opening fit of operation {opening.operation_id}"
             else:
                 dc, dc_source = float(breaker.design_parameters()["DC"]), "breaker file design value"
+        previous = crud.latest_good_fit(session, breaker_id=op.breaker_id, kind=op.kind,
+                                        before=op.occurred_at, exclude_operation=operation_id)
+        previous = (previous.operation_id, previous.result) if previous is not None else None
         capture_path, expected_sha = op.capture_path, op.capture_sha256
         kind = op.kind
     t0 = time.perf_counter()
     try:
-        result_dict, curve = _fit(capture_path, expected_sha, breaker, kind, dc, options)
+        # Built outside the claim's transaction: the first import of the estimator is slow.
+        prior = warm_prior(breaker, kind, previous)
+        result_dict, curve = _fit(capture_path, expected_sha, breaker, kind, dc, options, prior)
         if dc is not None:
             result_dict["dc_used"], result_dict["dc_source"] = dc, dc_source
         failure = None
@@ -122,7 +128,27 @@ def failure_reason(exc: Exception) -> str:
     return f"{type(exc).__name__}: {text}"
 
 
-def _fit(capture_path: str, expected_sha: str, breaker, kind: str, dc, options: JobOptions):
+def warm_prior(breaker, kind: str, previous: tuple | None):
+    """The warm start of a fit: the breaker's previous good fit ``(operation id, result dict)``
+    of that kind when usable, else the breaker file's design values."""
+    from service.estimation.warm_start import prior_from_design, prior_from_fit
+
+    if previous is not None and previous[1]:
+        prior = prior_from_fit(previous[1], f"the fit of operation {previous[0]}")
+        if prior is not None:
+            return prior
+    return prior_from_design(breaker, kind)
+
+
+def _accepts_prior(fit_function) -> bool:
+    try:
+        return "prior" in inspect.signature(fit_function).parameters
+    except (TypeError, ValueError):
+        return False
+
+
+def _fit(capture_path: str, expected_sha: str, breaker, kind: str, dc, options: JobOptions,
+         prior=None):
     from drivers.capture import CaptureError
     from service.acquisition.capture_file import read_capture
 
@@ -136,14 +162,15 @@ def _fit(capture_path: str, expected_sha: str, breaker, kind: str, dc, options: 
     capture = read_capture(capture_path, travel_channel=breaker.channels.get("travel", "travel"),
                            vibration_channel=breaker.channels.get("vibration", "vibration"))
     fit_capture = _resolve(options.fit_function)
-    result = fit_capture(capture, breaker, kind, dc=dc, seed=options.fit_seed)
+    extra = {"prior": prior} if prior is not None and _accepts_prior(fit_capture) else {}
+    result = fit_capture(capture, breaker, kind, dc=dc, seed=options.fit_seed, **extra)
     out = result.to_dict() if hasattr(result, "to_dict") else dict(result)
     curve = None
     if hasattr(result, "fitted_travel"):
         fitted = np.asarray(result.fitted_travel(capture, breaker), dtype=float)
         idx = np.unique(np.linspace(0, fitted.size - 1, min(options.curve_points, fitted.size)).astype(int))
-        curve = {"t": [round(float(v), 9) for v in capture.t[idx]],
-                 "fitted": [round(float(v), 7) for v in fitted[idx]]}
+        curve = {"t": np.round(capture.t[idx], 9).tolist(),
+                 "fitted": np.round(fitted[idx], 7).tolist()}
     return _jsonable(out), curve
 
 

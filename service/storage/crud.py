@@ -203,6 +203,19 @@ def latest_opening_fit(session: Session, *, breaker_id: int, before: datetime | 
     return None
 
 
+def latest_good_fit(session: Session, *, breaker_id: int, kind: str,
+                    before: datetime | None = None, exclude_operation: int | None = None) -> FitRow | None:
+    """The breaker's latest identifiable finished fit of one kind (a warm-start prior)."""
+    q = (select(FitRow).join(OperationRow, OperationRow.id == FitRow.operation_id)
+         .where(FitRow.breaker_id == breaker_id, FitRow.kind == kind, FitRow.status == "done",
+                FitRow.identifiable.is_not(False)))
+    if before is not None:
+        q = q.where(OperationRow.occurred_at <= before)
+    if exclude_operation is not None:
+        q = q.where(FitRow.operation_id != exclude_operation)
+    return session.scalar(q.order_by(OperationRow.occurred_at.desc(), FitRow.id.desc()).limit(1))
+
+
 def latest_fit(session: Session, *, breaker_id: int, kind: str) -> FitRow | None:
     q = (select(FitRow).join(OperationRow, OperationRow.id == FitRow.operation_id)
          .where(FitRow.breaker_id == breaker_id, FitRow.kind == kind, FitRow.status == "done")

@@ -116,6 +116,9 @@ class FitRow(Base):
     queued_at: Mapped[datetime] = mapped_column(default=utcnow)
     started_at: Mapped[datetime | None]
     finished_at: Mapped[datetime | None]
+    # Refits: the row always holds the newest result; earlier ones move to fit_versions.
+    version: Mapped[int] = mapped_column(Integer, default=1, server_default="1")
+    refit_run_id: Mapped[int | None] = mapped_column(ForeignKey("refit_runs.id", ondelete="SET NULL"))
     operation: Mapped[OperationRow] = relationship(back_populates="fit")
 
 
@@ -220,6 +223,45 @@ class WebSessionRow(Base):
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     expires_at: Mapped[datetime]
     ended_at: Mapped[datetime | None]
+
+
+class RefitRunRow(Base):
+    """One ``hvcb refit`` run: which operations, how far it got. Resumable by its id."""
+
+    __tablename__ = "refit_runs"
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    breaker_id: Mapped[int | None] = mapped_column(ForeignKey("breakers.id", ondelete="CASCADE"))
+    since: Mapped[datetime | None]
+    status: Mapped[str] = mapped_column(String(12), default="queued")  # queued running interrupted done
+    reason: Mapped[str | None] = mapped_column(Text)
+    requested_by: Mapped[str | None] = mapped_column(String(120))
+    total: Mapped[int] = mapped_column(Integer, default=0)
+    done: Mapped[int] = mapped_column(Integer, default=0)
+    failed: Mapped[int] = mapped_column(Integer, default=0)
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+    started_at: Mapped[datetime | None]
+    finished_at: Mapped[datetime | None]
+
+
+class FitVersionRow(Base):
+    """A superseded result of an operation's fit (the fits row holds the newest version)."""
+
+    __tablename__ = "fit_versions"
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    fit_id: Mapped[int] = mapped_column(ForeignKey("fits.id", ondelete="CASCADE"))
+    operation_id: Mapped[int] = mapped_column(ForeignKey("operations.id", ondelete="CASCADE"))
+    version: Mapped[int] = mapped_column(Integer)
+    status: Mapped[str] = mapped_column(String(10))
+    failure_reason: Mapped[str | None] = mapped_column(Text)
+    parameters: Mapped[dict | None]
+    ci95: Mapped[dict | None]
+    rmse_rad: Mapped[float | None] = mapped_column(Float)
+    result: Mapped[dict | None]
+    finished_at: Mapped[datetime | None]
+    superseded_at: Mapped[datetime] = mapped_column(default=utcnow)
+    superseded_by_run: Mapped[int | None] = mapped_column(ForeignKey("refit_runs.id", ondelete="SET NULL"))
+
+    __table_args__ = (UniqueConstraint("operation_id", "version", name="uq_fit_versions_operation_version"),)
 
 
 class CapturePreviewRow(Base):

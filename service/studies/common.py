@@ -22,9 +22,13 @@ def pool_map(func, tasks, workers: int):
     """``[func(t) for t in tasks]``, in ``workers`` processes when more than one.
 
     Results come back in task order. Each worker compiles the numba kernels once (cached on disk).
+    A progress bar shows on a terminal (stderr), nothing otherwise.
     """
+    from ..progress import track
+
     tasks = list(tasks)
+    desc = getattr(func, "__name__", "tasks").replace("_", " ")
     if workers <= 1 or len(tasks) <= 1:
-        return [func(t) for t in tasks]
+        return [func(t) for t in track(tasks, desc=desc, unit="task")]
     with ProcessPoolExecutor(max_workers=min(workers, len(tasks))) as ex:
-        return list(ex.map(func, tasks, chunksize=1))
+        return list(track(ex.map(func, tasks, chunksize=1), total=len(tasks), desc=desc, unit="task"))

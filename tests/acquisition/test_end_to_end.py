@@ -279,14 +279,20 @@ async def run_modbus_chain(blocks, settings, scaling, out_dir, *, transport, del
                            timeout_s=timeout_s, settle_s=0.8, poll_interval_s=0.01, block_retries=3),
             scaling)
         detected = []
+        acked_when_durable = []  # the DAQ's acknowledgements counted as each capture is handed on
+
+        def on_capture(path, det):
+            detected.append((path, det))
+            acked_when_durable.append(em.stats.captures_acknowledged)
+
         try:
             stats = await asyncio.wait_for(
                 capture_stream(drv, TriggerDetector(settings, FS), out_dir, max_captures=len(blocks),
-                               on_capture=lambda path, det: detected.append((path, det))),
+                               on_capture=on_capture),
                 timeout=CHAIN_TIMEOUT_S)
         finally:
             await drv.aclose()
-    return stats, detected, drv, em
+    return stats, detected, drv, em, acked_when_durable
 
 
 @pytest.mark.parametrize("transport", ["tcp", "rtu"])
@@ -294,12 +300,15 @@ async def run_modbus_chain(blocks, settings, scaling, out_dir, *, transport, del
 def test_modbus_captures_to_comtrade_files_equal_the_truth(stream, settings, scaling, tmp_path,
                                                            transport, timeout_mid_download):
     blocks = daq_captures(stream)
-    stats, detected, drv, em = asyncio.run(run_modbus_chain(
+    stats, detected, drv, em, acked_when_durable = asyncio.run(run_modbus_chain(
         blocks, settings, scaling, tmp_path, transport=transport,
         delay=1.0 if timeout_mid_download else None))  # 1.0 s > the 0.4 s response timeout
 
     # Every queued capture was downloaded whole, acknowledged once, and nothing half-stored.
     assert drv.stats.captures == em.stats.captures_acknowledged == len(blocks)
+    # The DAQ frees a capture only after its files are durable: when capture k is handed on,
+    # exactly the k captures before it have been acknowledged.
+    assert acked_when_durable == list(range(len(blocks)))
     assert drv.stats.abandoned == 0 and drv.stats.crc_errors == 0
     assert stats.blocks == len(blocks) and stats.samples == sum(b.travel.size for b in blocks)
     if timeout_mid_download:

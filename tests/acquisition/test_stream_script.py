@@ -72,3 +72,54 @@ def test_default_script_alternates_operations(breaker):
 def test_impossible_scripts_are_refused(breaker, ops, message):
     with pytest.raises(ValueError, match=message):
         ScriptedStream(breaker, duration_s=1.0, operations=ops)
+
+
+def clean_opening(breaker, shape):
+    """A noise-free opening at 0.1 s with the given return shape: (stream, travel, vibration)."""
+    stream = ScriptedStream(breaker, duration_s=0.4, seed=3, operations=[ScriptedOperation("open", 0.1)],
+                            noise_rad=0.0, noise_g=0.0, bits=None, return_shape=shape)
+    travel, vib = stream.samples(0, stream.n_samples)
+    return stream, travel, vib
+
+
+@pytest.mark.parametrize("shape", ["model", "critical", "oscillating"])
+def test_return_shapes_keep_the_arrival_and_the_peak(breaker, shape):
+    model, travel_model, _ = clean_opening(breaker, "model")
+    stream, travel, _ = clean_opening(breaker, shape)
+    k = int(np.floor(stream.truth[0].t_end_s * stream.fs))  # last sample before the peak
+    assert stream.truth[0].t_end_s == model.truth[0].t_end_s
+    assert np.array_equal(travel[:k + 1], travel_model[:k + 1])  # unchanged up to the peak
+    assert np.max(np.abs(np.diff(travel))) < 0.01                  # continuous
+    assert abs(np.argmax(travel) - k) <= 1                          # the peak is the maximum
+    assert abs(travel[-1] - travel_model[-1]) < 1e-6                # same open rest level
+
+
+def test_critical_return_is_at_rest_within_5ms_without_passing_it(breaker):
+    stream, travel, vib = clean_opening(breaker, "critical")
+    fs, k = stream.fs, int(round(stream.truth[0].t_end_s * stream.fs))
+    rest, overtravel = travel[-1], travel[k] - travel[-1]
+    assert overtravel > 0.01
+    after = travel[k + int(0.005 * fs):]
+    assert np.max(np.abs(after - rest)) < 0.02 * overtravel  # back at rest 5 ms after the peak
+    assert np.min(travel[k:]) >= rest - 1e-9                # critically damped: never past rest
+    # The shaft hits its rest stop: a burst 5 ms after the peak.
+    j = k + int(0.005 * fs)
+    assert np.max(np.abs(vib[j:j + 64])) > 50 and np.max(np.abs(vib[j - 64:j - 1])) < 1.0
+
+
+def test_oscillating_return_swings_past_rest_and_decays(breaker):
+    stream, travel, vib = clean_opening(breaker, "oscillating")
+    fs, k = stream.fs, int(round(stream.truth[0].t_end_s * stream.fs))
+    rest, overtravel = travel[-1], travel[k] - travel[-1]
+    swing = travel[k:k + int(0.05 * fs)]
+    assert np.min(swing) < rest - 0.3 * overtravel           # the rebound passes rest
+    late = travel[k + int(0.1 * fs):]
+    assert np.max(np.abs(late - rest)) < 0.05 * overtravel   # and rings down
+    # A burst where the swing first passes rest.
+    j = k + int(np.argmax(swing < rest))
+    assert np.max(np.abs(vib[j - 2:j + 64])) > 50
+
+
+def test_unknown_return_shape_is_refused(breaker):
+    with pytest.raises(ValueError, match="return shape"):
+        ScriptedStream(breaker, duration_s=1.0, return_shape="bouncy")

@@ -49,6 +49,7 @@ def test_modbus_emulator_serves_captures_to_a_driver(capsys, monkeypatch):
             drv = ModbusCaptureDriver(ModbusSettings(port=ports[0], poll_interval_s=0.01, timeout_s=0.5))
             async for block in drv:
                 got.append(block)
+                await drv.release()  # the capture is handled: the DAQ may free it
                 break
             await drv.aclose()
         asyncio.run(main())

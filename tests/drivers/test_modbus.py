@@ -41,6 +41,7 @@ async def download(em, n, **kw):
         async def consume():
             async for block in drv:
                 got.append(block)
+                await drv.release()
                 if len(got) == n:
                     return
         await asyncio.wait_for(consume(), timeout=30)

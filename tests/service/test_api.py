@@ -32,7 +32,8 @@ def _ingest(env, breaker, kind="open", seed=0, **kw):
 # -- auth ----------------------------------------------------------------------------------------
 OPERATOR_ROUTES = {("POST", "/api/v1/breakers/{breaker_id}/captures"), ("POST", "/api/v1/alarms/{alarm_id}/ack")}
 ADMIN_ROUTES = {("POST", "/api/v1/breakers"), ("POST", "/api/v1/breakers/{breaker_id}/baseline/reset"),
-                ("GET", "/api/v1/keys"), ("POST", "/api/v1/keys"), ("DELETE", "/api/v1/keys/{key_id}")}
+                ("GET", "/api/v1/keys"), ("POST", "/api/v1/keys"), ("DELETE", "/api/v1/keys/{key_id}"),
+                ("POST", "/api/v1/refits"), ("GET", "/api/v1/refits"), ("GET", "/api/v1/refits/{run_id}")}
 
 
 def _routes(app):

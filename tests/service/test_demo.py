@@ -12,6 +12,7 @@ from conftest import make_settings
 from service.api.demo import DemoDaq, DemoScript
 
 SCRIPT = DemoScript(healthy_ops=22, leak_per_op=0.03, total_ops=40, close_every=8, interval_s=0.15, seed=3)
+SCRIPT_CAPTURES = 45  # 40 openings and a closing after every 8th
 
 
 @pytest.fixture
@@ -73,17 +74,6 @@ def test_demo_chain_shows_fits_then_a_do_alarm_for_the_oil_leak(demo, tmp_path):
     assert points[-1]["value"] < 0.97 * baseline  # DO fell: the leak is in the fits
     assert alarm["state"] == "raised" and alarm["level"] in ("warning", "alarm")
 
-    ops = client.get("/api/v1/breakers/1/operations", params={"limit": 1000}, headers=h).json()
-    assert ops and all(o["source"] == "daq" for o in ops)
-    assert {"open", "close"} <= {o["kind"] for o in ops}
-    # the operations point at the durable COMTRADE files the acquisition pipeline wrote
-    from service.storage.models import OperationRow
-
-    with client.app.state.Session() as s:
-        paths = [r.capture_path for r in s.query(OperationRow)]
-    daq_dir = (tmp_path / "data" / "captures" / "daq").resolve()
-    assert len(paths) == len(ops) and all(p.startswith(str(daq_dir)) and p.endswith(".cfg") for p in paths)
-
     _poll(lambda: daq.done.is_set(), 60, "the history played out")
     metrics = _poll(lambda: (lambda t: t if 'hvcb_daq_captures_total{breaker="reference-252kV"} 45.0' in t else None)(
         client.get("/metrics", headers=h).text), 30, "all 45 captures in the metrics")
@@ -92,3 +82,19 @@ def test_demo_chain_shows_fits_then_a_do_alarm_for_the_oil_leak(demo, tmp_path):
     health = client.get("/healthz").json()
     (entry,) = health["daq"]
     assert entry["connected"] and entry["captures"] == 45 and entry["crc_errors"] == 0
+
+    # The history is over: no capture can arrive between the API's list and the rows behind it.
+    def all_operations():
+        ops = client.get("/api/v1/breakers/1/operations", params={"limit": 1000}, headers=h).json()
+        return ops if len(ops) >= SCRIPT_CAPTURES else None
+
+    ops = _poll(all_operations, 30, f"all {SCRIPT_CAPTURES} operations")
+    assert len(ops) == SCRIPT_CAPTURES and all(o["source"] == "daq" for o in ops)
+    assert {"open", "close"} <= {o["kind"] for o in ops}
+    # the operations point at the durable COMTRADE files the acquisition pipeline wrote
+    from service.storage.models import OperationRow
+
+    with client.app.state.Session() as s:
+        paths = [r.capture_path for r in s.query(OperationRow)]
+    daq_dir = (tmp_path / "data" / "captures" / "daq").resolve()
+    assert len(paths) == len(ops) and all(p.startswith(str(daq_dir)) and p.endswith(".cfg") for p in paths)
