@@ -151,6 +151,18 @@ def seed_web_sessions() -> dict[str, list[dict]]:
                                   expires_at=T0 + timedelta(hours=8), ended_at=None)]}
 
 
+def seed_fit_versions() -> dict[str, list[dict]]:
+    """A finished refit of breaker 1 that superseded operation 1's first fit."""
+    return {"refit_runs": [dict(id=1, breaker_id=1, since=None, status="done", reason="estimator upgrade",
+                                requested_by="admin", total=6, done=6, failed=0, created_at=T0 + timedelta(days=2),
+                                started_at=T0 + timedelta(days=2), finished_at=T0 + timedelta(days=2, hours=1))],
+            "fit_versions": [dict(id=1, fit_id=1, operation_id=1, version=1, status="done", failure_reason=None,
+                                  parameters={"AO": 209.0, "BO": 94.0, "DO": 41.5, "EO": 4.4},
+                                  ci95={"DO": [41.0, 42.0]}, rmse_rad=0.0025, result={"kind": "open"},
+                                  finished_at=T0 + timedelta(hours=1, seconds=6),
+                                  superseded_at=T0 + timedelta(days=2, minutes=5), superseded_by_run=1)]}
+
+
 def seed_capture_previews() -> dict[str, list[dict]]:
     return {"capture_previews": [dict(operation_id=2, pruned_at=T0 + timedelta(days=400), bytes_freed=164295,
                                       preview={"t": [0.0, 0.01, 0.02], "travel": [0.0, 0.4, 1.1],
@@ -160,7 +172,7 @@ def seed_capture_previews() -> dict[str, list[dict]]:
 
 # Revision -> the rows that revision's new tables hold. A migration that adds a table adds its seed.
 SEEDS = {"0001": seed_initial, "0002": seed_diagnoses, "0003_web": seed_web_sessions,
-         "0005": seed_capture_previews}
+         "0004": seed_fit_versions, "0005": seed_capture_previews}
 
 
 # -- helpers -------------------------------------------------------------------------------------
