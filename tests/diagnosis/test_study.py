@@ -15,7 +15,7 @@ from service.studies.commands import load_study
 @pytest.fixture(scope="module")
 def quick_study(tmp_path_factory):
     out = tmp_path_factory.mktemp("gap")
-    return out, run_gap_study(out, seed=4242, workers=2, n_per_effect=1, n_controls=2)
+    return out, run_gap_study(out, seed=4242, workers=2, n_per_effect=1, n_controls=2, cross=False)
 
 
 def test_registry_points_at_the_study():
