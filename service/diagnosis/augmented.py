@@ -128,21 +128,13 @@ def fit_augmented(base: Fit, data, breaker, operation, effect: str, mask=None,
     z_lo = np.concatenate([lo, [s_lo], sh_lo if k else []])
     z_hi = np.concatenate([hi, [s_hi], sh_hi if k else []])
     z_scale = np.concatenate([_scale(base.x), [real], (sh_hi - sh_lo) * 0.25 if k else []])
-    # Every start gets a short fit; the best is then polished with the full budget, so the
-    # result does not hang on which start happened to stop a hair lower.
-    short = max(3, max_nfev // 3) if len(starts) > 1 else max_nfev
     best = None
     for x0, s0, shs in starts:
         z0 = np.concatenate([np.clip(x0, lo, hi), [s0], np.asarray(shs, float) if k else []])
         z0 = np.clip(z0, z_lo, z_hi)
-        res = least_squares(fun, z0, bounds=(z_lo, z_hi), x_scale=z_scale, max_nfev=short,
+        res = least_squares(fun, z0, bounds=(z_lo, z_hi), x_scale=z_scale, max_nfev=max_nfev,
                             diff_step=1e-5)
-        if best is None or res.cost < best.cost - 1e-6 * abs(best.cost):
-            best = res
-    if short < max_nfev:
-        res = least_squares(fun, best.x, bounds=(z_lo, z_hi), x_scale=z_scale, max_nfev=max_nfev,
-                            diff_step=1e-5)
-        if res.cost < best.cost:
+        if best is None or res.cost < best.cost - 1e-9 * abs(best.cost):
             best = res
     if best.cost >= base_cost:
         return Fit(np.array(base.x, float), 0.0, effect, sh0)
