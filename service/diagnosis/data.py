@@ -9,7 +9,7 @@ import numpy as np
 
 from ..mechanics.breaker import Breaker
 from ..mechanics.coordinates import operation_coordinate
-from ..mechanics.prototype import Effects, simulate_prototype_closing, simulate_prototype_opening
+from ..mechanics.prototype import simulate_family
 
 BLOCK = 16               # samples per block (128 kHz -> 8 kHz)
 FIT_DT = 1.0 / 16_000    # RK4 step inside the fits [s]; validated against exact in tests
@@ -50,29 +50,27 @@ def window_data(capture, fit, breaker: Breaker, operation: str) -> WindowData:
 
 
 def model_curve(x, data: WindowData, breaker: Breaker, operation: str, effect: str | None,
-                strength: float = 0.0, t=None):
+                strength: float = 0.0, t=None, shape=None):
     """Operation coordinate [rad] of the prototype at block centres (or ``t`` [s from the
-    window start]); ``x`` = state parameters followed by the onset delay τ [s]."""
+    window start]); ``x`` = state parameters followed by the onset delay τ [s]; ``shape``: the
+    effect's family shape parameters (the prototype's defaults when None)."""
     names = STATE[operation]
     params = dict(zip(names, x[: len(names)]))
     tau = x[len(names)]
     tt = (data.t if t is None else t) - tau
-    eff = Effects.only(effect, strength) if effect else Effects()
-    if operation == "open":
-        tr = simulate_prototype_opening(params, np.maximum(tt, 0.0), breaker=breaker, effects=eff,
-                                        method="fast", dt_max=FIT_DT)
-        rest = 0.0
-    else:
+    if operation == "close":
         params["DC"] = data.dc
-        tr = simulate_prototype_closing(params, np.maximum(tt, 0.0), breaker=breaker, effects=eff,
-                                        method="fast", dt_max=FIT_DT)
         rest = float(breaker.cam.theta2[0])
+    else:
+        rest = 0.0
+    tr = simulate_family(operation, params, np.maximum(tt, 0.0), breaker=breaker, effect=effect,
+                         strength=strength if effect else 0.0, shape=shape, dt_max=FIT_DT)
     return np.where(tt < 0, rest, tr.theta), tr
 
 
-def block_residual(x, data, breaker, operation, effect=None, strength=0.0):
+def block_residual(x, data, breaker, operation, effect=None, strength=0.0, shape=None):
     """Residual in noise units per block: (y − model)·√count / σ."""
-    m, _ = model_curve(x, data, breaker, operation, effect, strength)
+    m, _ = model_curve(x, data, breaker, operation, effect, strength, shape=shape)
     r = (data.y - m) * np.sqrt(data.count) / data.noise
     return np.where(np.isfinite(r), r, 1e3)
 

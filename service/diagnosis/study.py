@@ -242,8 +242,12 @@ TARGETS = {"top1_accuracy_distinguishable": 0.90, "control_none_rate": 0.90,
 
 
 def run_gap_study(out_dir: Path, *, seed: int = DEFAULT_SEED, quick: bool = False, workers: int = 2,
-                  n_per_effect: int = 20, n_controls: int = 40) -> dict:
-    """Run the blind study into ``out_dir``; returns the JSON-able summary (also ``gap.json``)."""
+                  n_per_effect: int = 20, n_controls: int = 40, cross: bool = True) -> dict:
+    """Run the blind study into ``out_dir``; returns the JSON-able summary (also ``gap.json``).
+
+    With ``cross`` (the default) the cross-prototype study on prototype B's captures
+    (:mod:`.cross_study`) runs first and is the headline of ``gap.md``; its full figures are in
+    ``gap_cross.json`` / ``gap_cross.md`` and under ``cross_prototype`` in ``gap.json``."""
     from ..mechanics.prototype import EFFECT_NAMES
     from ..studies.common import pool_map
     from ..studies.report import write_json
@@ -262,10 +266,17 @@ def run_gap_study(out_dir: Path, *, seed: int = DEFAULT_SEED, quick: bool = Fals
     rows = pool_map(_run_one, jobs, max(1, int(workers)))
     wall = time.perf_counter() - t0
     summary = summarise(rows, EFFECT_NAMES)
+    cross_data = None
+    if cross:
+        from .cross_study import run_cross_study
+
+        sizes = {"per_effect": 1, "controls": 4, "outside": 1} if quick else {}
+        full = run_cross_study(out, seed=seed, workers=workers, **sizes)
+        cross_data = {k: v for k, v in full.items() if k != "rows"}
     data = {"seed": seed, "quick": quick, "workers": workers, "n_per_effect": n_per_effect,
             "n_controls": n_controls, "captures": len(rows), "noise_rad": NOISE_RAD, "bits": BITS,
             "strength_range_x_realistic": list(STRENGTH_RANGE), "state_spread": STATE_SPREAD,
-            "wall_time_s": wall, **summary, "targets": TARGETS, "rows": rows}
+            "wall_time_s": wall, **summary, "targets": TARGETS, "cross_prototype": cross_data, "rows": rows}
     write_json(out, "gap", data)
     _write_markdown(out, data)
     _plot_confusion(out, data)
@@ -314,9 +325,18 @@ def _write_markdown(out, data):
              f"{data['wall_time_s']:.0f} s on {data['workers']} workers.",
              "Leave-one-out: the verdict recomputed by `decide()` without the true effect, over the "
              "captures of distinguishable effects with a significant gap."]
-    write_markdown(out, "gap", "Blind gap-diagnosis study (issue 6)", headline, ["figure", "value", "target"],
-                   sections=[("Per effect", cols, rows), ("Confusion matrix (rows: truth, columns: verdict)",
-                                                         ["truth"] + labels, conf_rows)],
+    sections = [("Own prototype: figures", ["figure", "value", "target"], headline),
+                ("Own prototype: per effect", cols, rows),
+                ("Own prototype: confusion matrix (rows: truth, columns: verdict)", ["truth"] + labels, conf_rows)]
+    main = headline
+    if data.get("cross_prototype"):
+        from .cross_study import headline_rows
+
+        main = headline_rows(data["cross_prototype"])
+        notes = notes + ["Headline: the cross-prototype study (prototype B, an independently written "
+                         "prototype); details in gap_cross.md."]
+    write_markdown(out, "gap", "Blind gap-diagnosis study (headline: cross-prototype, prototype B)", main,
+                   ["figure", "value", "target"], sections=sections,
                    notes=notes, digits=3)
 
 

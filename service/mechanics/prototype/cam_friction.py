@@ -15,6 +15,9 @@ from numba import njit
 
 
 @njit(cache=True, inline="always")
-def cam_load_factor(loss):
-    """1/η [-] for loss 1 − η [-]."""
-    return 1.0 / (1.0 - loss)
+def cam_load_factor(loss, slope=0.0, u=0.5):
+    """1/η [-] for loss 1 − η [-].
+
+    Family (diagnosis): the loss varies along the rise, (1 − η)·(1 + slope·(2u − 1)) with u the
+    rise fraction [-]; slope 0 (the prototype) is a constant efficiency."""
+    return 1.0 / (1.0 - min(loss * (1.0 + slope * (2.0 * u - 1.0)), 0.9))

@@ -19,9 +19,12 @@ V_EPS = 0.05
 
 
 @njit(cache=True, inline="always")
-def wipe_torque(theta2, omega2, w, CC, theta_touch, theta_end):
-    """Contact load per J2 [rad/s²] opposing closing."""
+def wipe_torque(theta2, omega2, w, CC, theta_touch, theta_end, spring_share=0.5):
+    """Contact load per J2 [rad/s²] opposing closing.
+
+    Family (diagnosis): the touch position (``theta_touch``) and the split of the load between
+    the wipe spring (``spring_share``) and the finger friction are free."""
     if w == 0.0 or theta2 < theta_touch:
         return 0.0
     s = (theta2 - theta_touch) / (theta_end - theta_touch)
-    return w * CC * (0.5 * math.tanh(omega2 / V_EPS) + 0.5 * s)
+    return w * CC * ((1.0 - spring_share) * math.tanh(omega2 / V_EPS) + spring_share * s)

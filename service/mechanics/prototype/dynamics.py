@@ -21,7 +21,7 @@ from .cam_friction import cam_load_factor
 from .contact_wipe import wipe_torque
 from .linkage_kinematics import inertia_ratio
 from .orifice_buffer import orifice_torque
-from .puffer_gas import gas_torque
+from .puffer_gas import gas_torque, leaky_gas
 from .rod_elasticity import MASS_FRACTION, rod_coefficients
 from .spring_nonlinearity import closing_spring_factor, opening_spring_extra
 from .stribeck_friction import stribeck_torque
@@ -29,10 +29,22 @@ from .viscous_friction import viscous_torque
 
 # Indices into the strength vector (order of effects.EFFECT_NAMES).
 LINKAGE, ORIFICE, PUFFER, ROD, STRIBECK, VISCOUS, SPRING, SENSOR, CAM, WIPE = range(10)
+# Shape parameters follow the strengths: effect k's j-th shape is e[10 + 3k + j] (effects.SHAPES).
+SHAPE0, NSH = 10, 3
 
 # Opening constants c: [CO s^-1, α0 rad, X1 = xO1/rO rad, stroke rad]
 # Closing constants c: [xC0 m, rC m, d m, θ1_start rad, CO s^-1, g_start m, θt rad, θ2_end rad,
 #                       θm rad, rise_end rad]
+
+
+@njit(cache=True, inline="always")
+def _sh(e, k, j):
+    return e[SHAPE0 + NSH * k + j]
+
+
+@njit(cache=True, inline="always")
+def _gas(theta, omega, e, BO, stroke):
+    return gas_torque(theta, e[PUFFER], BO, stroke, _sh(e, PUFFER, 0), _sh(e, PUFFER, 1))
 
 
 @njit(cache=True)
@@ -42,26 +54,35 @@ def opening_rhs(x, p, e, c):
     CO, alpha0, X1, stroke = c[0], c[1], c[2], c[3]
     th, om, ph, vp = x[0], x[1], x[2], x[3]
     # Generalised torque on the output shaft, per J2 [rad/s²].
-    q = -AO * th + BO + opening_spring_extra(th, e[SPRING], AO, X1)
-    q -= stribeck_torque(om, e[STRIBECK], BO) + viscous_torque(om, e[VISCOUS], CO)
+    q = -AO * th + BO + opening_spring_extra(th, e[SPRING], AO, X1, _sh(e, SPRING, 0))
+    q -= stribeck_torque(om, e[STRIBECK], BO, _sh(e, STRIBECK, 0), _sh(e, STRIBECK, 1))
+    q -= viscous_torque(om, e[VISCOUS], CO, _sh(e, VISCOUS, 0), th / stroke)
     if th > alpha0:
-        q -= DO * om + EO * (th - alpha0) + orifice_torque(th, om, e[ORIFICE], DO, alpha0, stroke)
+        q -= DO * om + EO * (th - alpha0) + orifice_torque(th, om, e[ORIFICE], DO, alpha0, stroke,
+                                                           _sh(e, ORIFICE, 0), _sh(e, ORIFICE, 1),
+                                                           _sh(e, ORIFICE, 2))
     dx = np.empty(4)
     if e[ROD] > 0.0:
-        K, C = rod_coefficients(e[ROD])
+        K, C = rod_coefficients(e[ROD], _sh(e, ROD, 0))
         f = K * (th - ph) + C * (om - vp)
         mu = MASS_FRACTION
         dx[0] = om
         dx[1] = (q - f) / (1.0 - mu)
         dx[2] = vp
-        dx[3] = (f - CO * vp - gas_torque(ph, e[PUFFER], BO, stroke)) / mu
+        dx[3] = (f - CO * vp - _gas(ph, vp, e, BO, stroke)) / mu
     else:
-        j, jp = inertia_ratio(th, e[LINKAGE], 0.5 * stroke)
-        q -= CO * j * om + gas_torque(th, e[PUFFER], BO, stroke)
+        j, jp = inertia_ratio(th, e[LINKAGE], 0.5 * stroke, _sh(e, LINKAGE, 0), _sh(e, LINKAGE, 1))
+        leak = _sh(e, PUFFER, 2)
+        if e[PUFFER] > 0.0 and leak > 0.0:
+            # the contact-side slot is free with a rigid rod: it carries the gas over-density
+            gas, dg = leaky_gas(th, om, ph, e[PUFFER], BO, stroke, _sh(e, PUFFER, 0), _sh(e, PUFFER, 1), leak)
+        else:
+            gas, dg = _gas(th, om, e, BO, stroke), om
+        q -= CO * j * om + gas
         acc = (q - 0.5 * jp * om * om) / j
         dx[0] = om
         dx[1] = acc
-        dx[2] = om
+        dx[2] = dg
         dx[3] = acc
     return dx
 
@@ -76,24 +97,32 @@ def closing_rhs(x, p, e, c, cx, cy, cc):
     h, h1, h2, _k = _cam(th1, 0, cx, cy, cc)
     ct = math.cos(th1)
     g = (xC0 - rC * (1.0 - ct)) * math.sin(th1) / (d + rC * ct)
-    drive = AC * g * closing_spring_factor(th1, e[SPRING], xC0, rC)
-    drive -= stribeck_torque(om1, e[STRIBECK], AC * g_start)
-    B = BC * cam_load_factor(e[CAM])
+    h0 = 2.0 * tm - te
+    u = (h - h0) / (te - h0)
+    share = _sh(e, SPRING, 1)
+    drive = AC * g * closing_spring_factor(th1, (1.0 - share) * e[SPRING], xC0, rC, _sh(e, SPRING, 0))
+    drive -= stribeck_torque(om1, e[STRIBECK], AC * g_start, _sh(e, STRIBECK, 0), _sh(e, STRIBECK, 1))
+    B = BC * cam_load_factor(e[CAM], _sh(e, CAM, 0), min(max(u, 0.0), 1.0))
     om2 = h1 * om1
-    load = CC + DC * h + viscous_torque(om2, e[VISCOUS], CO)
+    load = CC + DC * h + viscous_torque(om2, e[VISCOUS], CO, _sh(e, VISCOUS, 0), u)
+    if share > 0.0 and e[SPRING] != 0.0:
+        # the opening spring being charged by the closing, with the same family of stiffening
+        load += share * e[SPRING] * DC * te * max(u, 0.0) ** _sh(e, SPRING, 0)
+    if e[WIPE] > 0.0:
+        tt = h0 + _sh(e, WIPE, 0) * (te - h0)
     dx = np.empty(4)
     if e[ROD] > 0.0:
-        K, C = rod_coefficients(e[ROD])
+        K, C = rod_coefficients(e[ROD], _sh(e, ROD, 0))
         mu = MASS_FRACTION
         f = K * (h - ph) + C * (om2 - vp)
         acc1 = (drive - B * h1 * ((1.0 - mu) * h2 * om1 * om1 + load + f)) / (1.0 + B * (1.0 - mu) * h1 * h1)
         dx[0] = om1
         dx[1] = acc1
         dx[2] = vp
-        dx[3] = (f - wipe_torque(ph, vp, e[WIPE], CC, tt, te)) / mu
+        dx[3] = (f - wipe_torque(ph, vp, e[WIPE], CC, tt, te, _sh(e, WIPE, 1))) / mu
     else:
-        j, jp = inertia_ratio(h, e[LINKAGE], tm)
-        load += wipe_torque(h, om2, e[WIPE], CC, tt, te)
+        j, jp = inertia_ratio(h, e[LINKAGE], tm, _sh(e, LINKAGE, 0), _sh(e, LINKAGE, 1))
+        load += wipe_torque(h, om2, e[WIPE], CC, tt, te, _sh(e, WIPE, 1))
         acc1 = (drive - B * h1 * ((j * h2 + 0.5 * jp * h1 * h1) * om1 * om1 + load)) / (1.0 + B * j * h1 * h1)
         dx[0] = om1
         dx[1] = acc1
@@ -168,11 +197,12 @@ def integrate_rk4(op, x0, p, e, c, cx, cy, cc, t, dt_max):
                 x = xn
                 tc += hs
             tc = tj
+        side = _sh(e, ROD, 1) if e[ROD] > 0.0 else 0.0  # sensor on the contact side of the rod
         if op == 0:
-            theta[j] = x[0]
-            omega[j] = x[1]
+            theta[j] = x[0] + side * (x[2] - x[0])
+            omega[j] = x[1] + side * (x[3] - x[1])
         else:
             h, h1, _h2, _k = _cam(x[0], 0, cx, cy, cc)
-            theta[j] = h
-            omega[j] = h1 * x[1]
+            theta[j] = h + side * (x[2] - h)
+            omega[j] = h1 * x[1] + side * (x[3] - h1 * x[1])
     return theta, omega, ev

@@ -22,7 +22,14 @@ from numba import njit
 
 
 @njit(cache=True, inline="always")
-def inertia_ratio(theta, lam, theta_mid):
-    """j(θ) [-] and j'(θ) [rad^-1] at output-shaft angle θ [rad] for strength λ [-]."""
-    s = math.sin(theta - theta_mid)
-    return 1.0 - lam * s * s, -lam * math.sin(2.0 * (theta - theta_mid))
+def inertia_ratio(theta, lam, theta_mid, phase=0.0, second=0.0):
+    """j(θ) [-] and j'(θ) [rad^-1] at output-shaft angle θ [rad] for strength λ [-].
+
+    Family (diagnosis): the perpendicular position shifted by ``phase`` [rad] and a share
+    ``second`` of the second harmonic, j = 1 − λ·[(1 − r)·sin²(ψ) + r·sin²(2ψ)], ψ = θ − θm − phase."""
+    psi = theta - theta_mid - phase
+    s = math.sin(psi)
+    s2 = math.sin(2.0 * psi)
+    j = 1.0 - lam * ((1.0 - second) * s * s + second * s2 * s2)
+    jp = -lam * ((1.0 - second) * s2 + second * 2.0 * math.sin(4.0 * psi))
+    return j, jp

@@ -18,9 +18,15 @@ V_REF = 20.0  # [rad/s]
 
 
 @njit(cache=True, inline="always")
-def orifice_torque(theta, omega, gamma, DO, alpha0, stroke):
-    """Extra buffer torque per J2 [rad/s²] (opposes θ'); zero before α0."""
-    if theta <= alpha0 or gamma == 0.0:
+def orifice_torque(theta, omega, gamma, DO, alpha0, stroke, n=2.0, metering=0.5, free=0.0):
+    """Extra buffer torque per J2 [rad/s²] (opposes θ'); zero before α0 + ``free`` [rad].
+
+    Family (diagnosis): the force grows as |θ'|ⁿ (n 1 laminar … 2 turbulent), the metering pin
+    closes the area by the fraction ``metering`` over the buffer stroke. The prototype's own form
+    is n = 2, metering 0.5, no free travel."""
+    start = alpha0 + free
+    if theta <= start or gamma == 0.0:
         return 0.0
-    a = 1.0 - 0.5 * min((theta - alpha0) / (stroke - alpha0), 1.0)
-    return gamma * DO * omega * abs(omega) / V_REF / (a * a)
+    a = 1.0 - metering * min((theta - start) / (stroke - start), 1.0)
+    w = abs(omega) / V_REF
+    return gamma * DO * omega * w ** (n - 1.0) / (a * a)

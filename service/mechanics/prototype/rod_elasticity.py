@@ -24,8 +24,11 @@ DAMPING_RATIO = 0.05   # ζ [-]
 
 
 @njit(cache=True, inline="always")
-def rod_coefficients(eps):
-    """K [s^-2] and C [s^-1] per J2 for compliance ε [-] (ε > 0)."""
+def rod_coefficients(eps, zeta=DAMPING_RATIO):
+    """K [s^-2] and C [s^-1] per J2 for compliance ε [-] (ε > 0) and damping ratio ζ [-].
+
+    Family (diagnosis): ζ free, and the travel sensor on the shaft or the contact side of the
+    rod (a reading θ + s·(φ − θ), s the ``sensor_side`` shape; the prototype's is 0)."""
     w = 2.0 * math.pi * F_REF / math.sqrt(eps)
     mm = MASS_FRACTION * (1.0 - MASS_FRACTION)
-    return w * w * mm, 2.0 * DAMPING_RATIO * w * mm
+    return w * w * mm, 2.0 * zeta * w * mm

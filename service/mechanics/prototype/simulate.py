@@ -20,7 +20,7 @@ from ..breaker import Breaker
 from ..trajectory import Trajectory
 from . import dynamics
 from .contact_wipe import TOUCH_FRACTION
-from .effects import Effects, check_operation
+from .effects import EFFECT_NAMES, Effects, check_operation, effect_vector
 from .sensor_nonlinearity import sensor_reading
 
 OPENING_PARAMETERS = ("AO", "BO", "DO", "EO")
@@ -88,7 +88,7 @@ def simulate_prototype_opening(params: Mapping[str, float], t, *, breaker: Break
     if not np.all(np.isfinite(p)) or p[0] <= 0:
         return _failed(t, f"invalid opening parameters {dict(zip(OPENING_PARAMETERS, p))}")
     c = opening_constants(breaker)
-    e = effects.as_array()
+    e = effect_vector(effects.as_array())
     x0 = np.zeros(4)
     if method == "fast":
         theta, omega, ev = _fast(0, x0, p, e, c, None, t, dt_max)
@@ -134,7 +134,7 @@ def simulate_prototype_closing(params: Mapping[str, float], t, *, breaker: Break
     if not np.all(np.isfinite(p)) or p[1] <= 0:
         return _failed(t, f"invalid closing parameters {dict(zip(CLOSING_PARAMETERS, p))}")
     c = closing_constants(breaker)
-    e = effects.as_array()
+    e = effect_vector(effects.as_array())
     h0 = float(breaker.cam.theta2[0])
     x0 = np.array([c[3], 0.0, h0, 0.0])
     if method == "fast":
@@ -167,7 +167,7 @@ def prototype_state(operation: str, params: Mapping[str, float], t, *, breaker: 
     """
     check_operation(effects, operation)
     t = np.asarray(t, dtype=float)
-    e = effects.as_array()
+    e = effect_vector(effects.as_array())
     if operation == "open":
         p = _param_vector(params, OPENING_PARAMETERS)
         return _exact_opening(np.zeros(4), p, e, opening_constants(breaker), t)[-1]
@@ -300,3 +300,40 @@ def _exact_closing(x0, p, e, c, cam, t):
     stalled = "stall" in times and times["stall"] < times.get("rise_end", np.inf)
     h, h1, _ = cam.evaluate(y[0])
     return h, h1 * y[1], times.get("touch", np.nan), times.get("rise_end", np.nan), stalled, y
+
+
+def simulate_family(operation: str, params: Mapping[str, float], t, *, breaker: Breaker,
+                    effect: str | None = None, strength: float = 0.0, shape=None,
+                    dt_max: float = FAST_DT) -> Trajectory:
+    """One operation with one effect of its family (fast integrator), for the diagnosis fits.
+
+    ``strength`` may be negative for the SIGNED effects (degressive spring, sensor reading high);
+    ``shape`` holds that effect's shape parameters (effects.SHAPES order; defaults if None).
+    ``params`` as in :func:`simulate_prototype_opening` / :func:`simulate_prototype_closing`.
+    """
+    names = OPENING_PARAMETERS if operation == "open" else CLOSING_PARAMETERS
+    p = _param_vector(params, names)
+    t = np.asarray(t, dtype=float)
+    if not np.all(np.isfinite(p)) or p[0 if operation == "open" else 1] <= 0:
+        return _failed(t, f"invalid parameters {dict(zip(names, p))}")
+    strengths = np.zeros(len(EFFECT_NAMES))
+    shapes = None
+    if effect is not None:
+        strengths[EFFECT_NAMES.index(effect)] = strength
+        if shape is not None:
+            shapes = {effect: shape}
+    e = effect_vector(strengths, shapes)
+    if operation == "open":
+        theta, omega, ev = _fast(0, np.zeros(4), p, e, opening_constants(breaker), None, t, dt_max)
+    else:
+        c = closing_constants(breaker)
+        x0 = np.array([c[3], 0.0, float(breaker.cam.theta2[0]), 0.0])
+        theta, omega, ev = _fast(1, x0, p, e, c, breaker.cam, t, dt_max)
+    if effect == "sensor_nonlinearity" and strength != 0.0:
+        sh = e[len(EFFECT_NAMES) + 3 * EFFECT_NAMES.index(effect):][:2]
+        if operation == "open":
+            theta = sensor_reading(theta, strength, breaker.stroke, sh[0], sh[1])
+        else:
+            theta = breaker.stroke - sensor_reading(breaker.stroke - theta, strength, breaker.stroke, sh[0], sh[1])
+    ok = bool(np.all(np.isfinite(theta)))
+    return Trajectory(t, theta, omega, ok, "ok" if ok else "diverged", float(ev[1]), {})

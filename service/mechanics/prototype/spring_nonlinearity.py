@@ -22,13 +22,17 @@ from numba import njit
 
 
 @njit(cache=True, inline="always")
-def opening_spring_extra(theta, beta, AO, X1):
-    """Extra opening-spring torque per J2 [rad/s²] (drives the opening)."""
-    X = X1 - theta
-    return beta * AO * X * X / X1
+def opening_spring_extra(theta, beta, AO, X1, power=2.0):
+    """Extra opening-spring torque per J2 [rad/s²] (drives the opening).
+
+    Family (diagnosis): F = k·x·(1 + β·(x/x_ref)^(p−1)), p = ``power`` 2 (quadratic) … 3
+    (cubic); β < 0 is a degressive spring."""
+    X = max(X1 - theta, 0.0)
+    return beta * AO * X1 * (X / X1) ** power
 
 
 @njit(cache=True, inline="always")
-def closing_spring_factor(theta1, beta, xC0, rC):
+def closing_spring_factor(theta1, beta, xC0, rC, power=2.0):
     """Multiplier on the closing drive AC·g(θ1) [-]."""
-    return 1.0 + beta * (xC0 - rC * (1.0 - math.cos(theta1))) / xC0
+    x = max(xC0 - rC * (1.0 - math.cos(theta1)), 0.0) / xC0
+    return 1.0 + beta * x ** (power - 1.0)

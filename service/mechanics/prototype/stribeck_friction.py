@@ -22,9 +22,12 @@ V_EPS = 0.05       # [rad/s]
 
 
 @njit(cache=True, inline="always")
-def stribeck_torque(omega, sigma, drive):
-    """Extra friction torque per inertia [rad/s²] opposing ω [rad/s]."""
+def stribeck_torque(omega, sigma, drive, v_s=V_STRIBECK, delta=2.0):
+    """Extra friction torque per inertia [rad/s²] opposing ω [rad/s].
+
+    Family (diagnosis): Stribeck speed ``v_s`` [rad/s] and exponent ``delta`` (1 … 2) of the
+    decay exp(−(|ω|/v_s)^δ)."""
     if sigma == 0.0:
         return 0.0
-    r = omega / V_STRIBECK
-    return sigma * drive * math.exp(-r * r) * math.tanh(omega / V_EPS)
+    r = abs(omega) / v_s
+    return sigma * drive * math.exp(-r ** delta) * math.tanh(omega / V_EPS)

@@ -13,6 +13,9 @@ from numba import njit
 
 
 @njit(cache=True, inline="always")
-def viscous_torque(omega, nu, CO):
-    """Viscous friction torque per J2 [rad/s²] opposing ω [rad/s]."""
-    return nu * CO * omega
+def viscous_torque(omega, nu, CO, slope=0.0, u=0.5):
+    """Viscous friction torque per J2 [rad/s²] opposing ω [rad/s].
+
+    Family (diagnosis): the coefficient varies linearly along the stroke, ν·(1 + slope·(2u − 1))
+    with u the stroke fraction [-]."""
+    return nu * CO * omega * (1.0 + slope * (2.0 * u - 1.0))
