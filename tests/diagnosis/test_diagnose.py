@@ -108,8 +108,4 @@ def test_buffer_gap_names_the_buffer_not_a_wrong_region_effect(breaker, make_cap
     stribeck = next(c for c in full["candidates"] if c["effect"] == "stribeck_friction")
     assert stribeck["delta_bic"] < -100 and not stribeck["in_region"]
     loo = diagnose([cap], breaker, "open", effects=["stribeck_friction", "puffer_gas"])
-    # Issue 11: the puffer's family (leaking gas, a velocity-dependent end-of-stroke force) is
-    # the same mechanism family as the buffer and may stand in for it; the wrong-region
-    # friction never does.
-    assert loo["verdict"] in ("unexplained", "puffer_gas")
-    assert loo["verdict"] != "stribeck_friction"
+    assert loo["verdict"] == "unexplained"
