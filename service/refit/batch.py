@@ -171,13 +171,6 @@ def _store(Session, run_id: int, *, ops_by_id: dict, results: dict) -> tuple[int
 
 def _new_values(result: dict, curve, now) -> dict:
     """The fits row's result columns (the same fields ``crud.store_fit_result`` writes)."""
-    window = result.get("window_s") or (None, None)
-    return dict(status="done", failure_reason=None, parameters=result.get("parameters"),
-                ci95=result.get("ci95"), stderr=result.get("stderr"), rmse_rad=result.get("rmse_rad"),
-                fitness=result.get("fitness"), window_start_s=window[0], window_end_s=window[1],
-                onset_delay_s=result.get("onset_delay_s"), noise_rad=result.get("noise_rad"),
-                evaluations=result.get("evaluations"), runtime_s=result.get("runtime_s"),
-                identifiable=result.get("identifiable"), condition_number=result.get("condition_number"),
-                dc_used=result.get("dc_used"), dc_source=result.get("dc_source"),
-                warnings=list(result.get("warnings") or []), characteristics=result.get("characteristics"),
-                curve=curve, result=result, finished_at=now)
+    from service.storage.crud import fit_result_values
+
+    return fit_result_values(result, curve, now)

@@ -148,18 +148,23 @@ def claim_fit(session: Session, *, operation_id: int, worker: str) -> FitRow | N
                           .execution_options(populate_existing=True))
 
 
+def fit_result_values(result: dict, curve: dict | None, finished_at) -> dict:
+    """The fits row's columns for a finished fit (a new fit and a refit write the same ones)."""
+    window = result.get("window_s") or (None, None)
+    return dict(status="done", failure_reason=None, parameters=result.get("parameters"),
+                ci95=result.get("ci95"), stderr=result.get("stderr"), rmse_rad=result.get("rmse_rad"),
+                fitness=result.get("fitness"), window_start_s=window[0], window_end_s=window[1],
+                onset_delay_s=result.get("onset_delay_s"), noise_rad=result.get("noise_rad"),
+                evaluations=result.get("evaluations"), runtime_s=result.get("runtime_s"),
+                identifiable=result.get("identifiable"), condition_number=result.get("condition_number"),
+                dc_used=result.get("dc_used"), dc_source=result.get("dc_source"),
+                warnings=list(result.get("warnings") or []), characteristics=result.get("characteristics"),
+                curve=curve, result=result, finished_at=finished_at)
+
+
 def store_fit_result(session: Session, *, operation_id: int, result: dict, curve: dict | None) -> bool:
     """Store a finished fit exactly once. False when another attempt already stored one."""
-    window = result.get("window_s") or (None, None)
-    values = dict(status="done", failure_reason=None, parameters=result.get("parameters"),
-                  ci95=result.get("ci95"), stderr=result.get("stderr"), rmse_rad=result.get("rmse_rad"),
-                  fitness=result.get("fitness"), window_start_s=window[0], window_end_s=window[1],
-                  onset_delay_s=result.get("onset_delay_s"), noise_rad=result.get("noise_rad"),
-                  evaluations=result.get("evaluations"), runtime_s=result.get("runtime_s"),
-                  identifiable=result.get("identifiable"), condition_number=result.get("condition_number"),
-                  dc_used=result.get("dc_used"), dc_source=result.get("dc_source"),
-                  warnings=list(result.get("warnings") or []), characteristics=result.get("characteristics"),
-                  curve=curve, result=result, finished_at=utcnow(), results_stored=FitRow.results_stored + 1)
+    values = dict(fit_result_values(result, curve, utcnow()), results_stored=FitRow.results_stored + 1)
     res = session.execute(update(FitRow).where(FitRow.operation_id == operation_id,
                                                FitRow.status.in_(("queued", "running"))).values(**values))
     if res.rowcount != 1:
