@@ -33,19 +33,25 @@ def pg_database():
     if why:
         print(why)
         pytest.skip(why)
+    yield from temporary_pg_database(f"hvcb_storage_{os.getpid()}_{uuid.uuid4().hex[:6]}")
+
+
+def temporary_pg_database(name: str):
+    """Create database ``name`` on the PostgreSQL lane's server, yield its URL, drop it."""
     from sqlalchemy import text
     from sqlalchemy.engine import make_url
 
     from service.storage.db import make_engine
 
     admin = make_engine(PG_URL)
-    name = f"hvcb_storage_{os.getpid()}_{uuid.uuid4().hex[:6]}"
     with admin.connect().execution_options(isolation_level="AUTOCOMMIT") as conn:
         conn.execute(text(f'CREATE DATABASE "{name}"'))
-    yield make_url(PG_URL).set(database=name).render_as_string(hide_password=False)
-    with admin.connect().execution_options(isolation_level="AUTOCOMMIT") as conn:
-        conn.execute(text(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)'))
-    admin.dispose()
+    try:
+        yield make_url(PG_URL).set(database=name).render_as_string(hide_password=False)
+    finally:
+        with admin.connect().execution_options(isolation_level="AUTOCOMMIT") as conn:
+            conn.execute(text(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)'))
+        admin.dispose()
 
 
 @pytest.fixture(params=["sqlite", pytest.param("postgres", marks=pytest.mark.postgres)])

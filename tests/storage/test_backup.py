@@ -15,7 +15,7 @@ from service.cli import main
 from service.settings import load_settings
 from service.storage.db import make_engine, session_factory, upgrade
 
-from .conftest import PG_URL
+from .conftest import temporary_pg_database
 from .history import add_operation, build_history, synth_captures
 
 ADMIN = "backup-test-admin-key-0123456789abcdef"
@@ -27,17 +27,7 @@ def restore_url(empty_db_url, tmp_path):
     if empty_db_url.startswith("sqlite"):
         yield f"sqlite:///{tmp_path / 'restored' / 'data' / 'hvcb.sqlite3'}"
         return
-    from sqlalchemy import text
-    from sqlalchemy.engine import make_url
-
-    admin = make_engine(PG_URL)
-    name = f"hvcb_restore_{uuid.uuid4().hex[:8]}"
-    with admin.connect().execution_options(isolation_level="AUTOCOMMIT") as conn:
-        conn.execute(text(f'CREATE DATABASE "{name}"'))
-    yield make_url(PG_URL).set(database=name).render_as_string(hide_password=False)
-    with admin.connect().execution_options(isolation_level="AUTOCOMMIT") as conn:
-        conn.execute(text(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)'))
-    admin.dispose()
+    yield from temporary_pg_database(f"hvcb_restore_{uuid.uuid4().hex[:8]}")
 
 
 def _config(path: Path, data_dir: Path, url: str) -> Path:
