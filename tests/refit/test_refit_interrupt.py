@@ -27,7 +27,14 @@ def _refit(db_url, data_dir):
                PYTHONPATH=os.pathsep.join([str(REPO), str(REPO / "tests" / "refit")]))
     return subprocess.Popen([sys.executable, "-m", "service.cli", "refit", "--workers", "1",
                              "--batch-size", "3"], cwd=REPO, env=env, start_new_session=True,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=_interruptible)
+
+
+def _interruptible() -> None:
+    """Ctrl-C as on a terminal: a suite started in the background (``cmd &`` in a script, as CI
+    may) passes SIGINT on ignored, and Python then never raises KeyboardInterrupt."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def _run(Session):
