@@ -20,7 +20,7 @@ import numpy as np  # noqa: E402
 from service.acquisition.synthetic import synthesize_capture  # noqa: E402
 from service.breaker_file import load_breaker  # noqa: E402
 from service.diagnosis import diagnose  # noqa: E402
-from service.mechanics.prototype import REALISTIC, Effects, make_prototype_simulator  # noqa: E402
+from service.prototypes.a import REALISTIC, Effects, make_prototype_simulator  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -40,7 +40,7 @@ def main() -> dict:
                                     simulate=make_prototype_simulator(breaker, eff, op, method="fast"))
         captures.append(("own", op, name, cap))
     # prototype B (independent equations): the families' fits can take longer on foreign shapes
-    from service.mechanics.prototype_b import simulate_capture
+    from service.prototypes.b import simulate_capture
 
     for op, name in [("open", "orifice_buffer"), ("open", "puffer_gas"), ("close", "rod_elasticity"),
                      ("close", "sensor_nonlinearity")]:

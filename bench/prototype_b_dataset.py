@@ -15,7 +15,7 @@ from pathlib import Path
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
-from service.mechanics.prototype_b import write_dataset  # noqa: E402
+from service.prototypes.b import write_dataset  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 

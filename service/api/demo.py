@@ -22,7 +22,7 @@ from service.acquisition.synthetic import synthesize_capture
 
 log = logging.getLogger("hvcb.demo")
 
-# Mild effects of a real mechanism, per operation (service.mechanics.prototype.Effects fields).
+# Mild effects of a real mechanism, per operation (service.prototypes.a.Effects fields).
 MILD_EFFECTS = {"open": {"viscous_friction": 0.02, "sensor_nonlinearity": 0.003, "orifice_buffer": 0.05},
                 "close": {"viscous_friction": 0.02, "sensor_nonlinearity": 0.003}}
 
@@ -51,7 +51,7 @@ def _simulators(breaker, effects: dict) -> dict:
     """The virtual prototype per operation; the reduced model where an effect is refused."""
     sims = {}
     try:
-        from service.mechanics.prototype import Effects, make_prototype_simulator
+        from service.prototypes.a import Effects, make_prototype_simulator
     except ImportError:
         return {"open": None, "close": None}
     for kind in ("open", "close"):

@@ -8,8 +8,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares
 
-from ..mechanics.prototype import REALISTIC, SHAPES, SIGNED, shape_bounds, shape_defaults
-from ..mechanics.prototype.effects import FIT_UPPER
+from ..prototypes.a import REALISTIC, SHAPES, SIGNED, shape_bounds, shape_defaults
+from ..prototypes.a.effects import FIT_UPPER
 from .data import STATE, block_residual
 
 MAX_NFEV = 12

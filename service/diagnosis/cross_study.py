@@ -1,6 +1,6 @@
 """The cross-prototype blind study: ``hvcb diagnose`` against prototype B's captures (issue 11).
 
-Prototype B (service/mechanics/prototype_b, docs/prototype-b.md) is an independently written
+Prototype B (service/prototypes/b, docs/prototype-b.md) is an independently written
 virtual prototype: the same ten effect names in its own equations, its constants spread ±6 %,
 128 kHz 16-bit COMTRADE with 1.5 mrad noise. Its dataset is written to ``DIR/prototype_b/``
 and the diagnoser reads only the files and the breaker; the manifest's truth labels are
@@ -88,7 +88,7 @@ def classify_groups(rows) -> dict:
 
 def summarise(rows) -> dict:
     """The study's figures from the per-capture rows."""
-    from ..mechanics.prototype import EFFECT_NAMES
+    from ..prototypes.a import EFFECT_NAMES
 
     ok = [r for r in rows if r["verdict"] != "error"]
     cls = classify_groups(ok)
@@ -155,7 +155,7 @@ def run_cross_study(out_dir: Path, *, seed: int = DEFAULT_SEED, workers: int = 2
     there for the same seed and sizes) and diagnose every capture blind. Returns the summary
     (also ``gap_cross.json`` and ``gap_cross.md``). ``limit`` diagnoses only the first captures
     (quick checks)."""
-    from ..mechanics.prototype_b import write_dataset
+    from ..prototypes.b import write_dataset
     from ..studies.common import pool_map
     from ..studies.report import write_json
 

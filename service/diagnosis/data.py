@@ -9,7 +9,7 @@ import numpy as np
 
 from ..mechanics.breaker import Breaker
 from ..mechanics.coordinates import operation_coordinate
-from ..mechanics.prototype import simulate_family
+from ..prototypes.a import simulate_family
 
 BLOCK = 16               # samples per block (128 kHz -> 8 kHz)
 FIT_DT = 1.0 / 16_000    # RK4 step inside the fits [s]; validated against exact in tests

@@ -20,7 +20,7 @@ from scipy.stats import chi2
 
 from ..mechanics.breaker import Breaker
 from ..mechanics.coordinates import operation_coordinate
-from ..mechanics.prototype import EFFECT_NAMES, FAMILY, LOCALITY, OPERATIONS, REGIONS, SHAPES
+from ..prototypes.a import EFFECT_NAMES, FAMILY, LOCALITY, OPERATIONS, REGIONS, SHAPES
 from .augmented import fit_augmented, fit_reduced, n_shapes, state_dict
 from .data import STATE, block_residual, gap_rms, model_curve, window_data
 from .identifiability import absorption, jacobian

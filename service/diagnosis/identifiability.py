@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..mechanics.prototype import REALISTIC
+from ..prototypes.a import REALISTIC
 from .data import STATE, model_curve
 
 MIN_CHI2 = 100.0

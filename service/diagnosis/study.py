@@ -44,7 +44,7 @@ STATE_SPREAD = 0.10           # ± fraction around the design value
 
 def _effect_jobs(seed: int, n_per_effect: int, n_controls: int):
     from ..mechanics.breaker import TABLE2_RANGES
-    from ..mechanics.prototype import EFFECT_NAMES, OPERATIONS, REALISTIC
+    from ..prototypes.a import EFFECT_NAMES, OPERATIONS, REALISTIC
     from ..studies.common import load_reference
 
     breaker = load_reference()
@@ -77,7 +77,7 @@ def _run_one(job: dict) -> dict:
     from ..acquisition.capture_file import read_capture
     from ..acquisition.comtrade_writer import write_comtrade
     from ..acquisition.synthetic import synthesize_capture
-    from ..mechanics.prototype import REGIONS, Effects, make_prototype_simulator
+    from ..prototypes.a import REGIONS, Effects, make_prototype_simulator
     from ..studies.common import load_reference
     from .diagnose import DiagnosisError, decide, diagnose
 
@@ -159,7 +159,7 @@ def _frac(xs):
 
 def summarise(rows: list, effects) -> dict:
     """The study's figures from the per-capture rows."""
-    from ..mechanics.prototype import EFFECT_NAMES
+    from ..prototypes.a import EFFECT_NAMES
 
     truths = [e for e in EFFECT_NAMES if e in effects] + ["none"]
     verdicts = list(EFFECT_NAMES) + ["none", "unexplained", "error"]
@@ -248,7 +248,7 @@ def run_gap_study(out_dir: Path, *, seed: int = DEFAULT_SEED, quick: bool = Fals
     With ``cross`` (the default) the cross-prototype study on prototype B's captures
     (:mod:`.cross_study`) runs first and is the headline of ``gap.md``; its full figures are in
     ``gap_cross.json`` / ``gap_cross.md`` and under ``cross_prototype`` in ``gap.json``."""
-    from ..mechanics.prototype import EFFECT_NAMES
+    from ..prototypes.a import EFFECT_NAMES
     from ..studies.common import pool_map
     from ..studies.report import write_json
 

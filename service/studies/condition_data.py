@@ -81,7 +81,7 @@ class DatasetSpec:
 
 
 def _effects(spec: DatasetSpec):
-    from ..mechanics.prototype import OPERATIONS, REALISTIC, UPPER, Effects
+    from ..prototypes.a import OPERATIONS, REALISTIC, UPPER, Effects
 
     # Strengths just below the prototype's hard limits stay valid for Effects' own checks.
     return Effects(**{name: min(REALISTIC[name] * spec.effects_scale, UPPER[name])
@@ -154,7 +154,7 @@ def make_capture(spec: DatasetSpec, condition: int, index: int, *, base: Breaker
     params = model_parameters(run, spec.operation)
     simulate = None
     if spec.source == "prototype":
-        from ..mechanics.prototype import make_prototype_simulator
+        from ..prototypes.a import make_prototype_simulator
 
         simulate = _with_end_of_travel(
             make_prototype_simulator(run, _effects(spec), spec.operation, method="fast"))

@@ -5,7 +5,7 @@ import pytest
 
 from service.acquisition.synthetic import synthesize_capture
 from service.breaker_file import load_breaker
-from service.mechanics.prototype import Effects, make_prototype_simulator
+from service.prototypes.a import Effects, make_prototype_simulator
 
 ROOT = Path(__file__).resolve().parents[2]
 

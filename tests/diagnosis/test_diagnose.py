@@ -8,7 +8,7 @@ import pytest
 from drivers.capture import Capture
 from service.diagnosis import DiagnosisError, diagnose
 from service.diagnosis.commands import _jsonable
-from service.mechanics.prototype import Effects
+from service.prototypes.a import Effects
 
 
 @pytest.fixture(scope="module")

@@ -5,7 +5,7 @@ perturbation of the reduced fit."""
 import numpy as np
 import pytest
 
-from service.mechanics.prototype import (
+from service.prototypes.a import (
     EFFECT_NAMES, OPERATIONS, REALISTIC, SHAPES, Effects, shape_bounds, shape_defaults, simulate_family,
     simulate_prototype_closing, simulate_prototype_opening,
 )

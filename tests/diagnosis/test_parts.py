@@ -6,7 +6,7 @@ import pytest
 from service.diagnosis.data import FIT_DT
 from service.diagnosis.phases import phase_bounds
 from service.mechanics.opening import simulate_opening
-from service.mechanics.prototype import REALISTIC, Effects, make_prototype_simulator, simulate_prototype_opening
+from service.prototypes.a import REALISTIC, Effects, make_prototype_simulator, simulate_prototype_opening
 
 
 @pytest.mark.parametrize("name", ["orifice_buffer", "rod_elasticity", "stribeck_friction"])
@@ -56,7 +56,7 @@ def test_cam_friction_is_absorbed_exactly_through_its_declared_equivalence(break
 
     from service.diagnosis.identifiability import EXACT_EQUIVALENCE
     from service.mechanics.closing import simulate_closing
-    from service.mechanics.prototype import REALISTIC, Effects, make_prototype_simulator
+    from service.prototypes.a import REALISTIC, Effects, make_prototype_simulator
 
     p = breaker.design_parameters()
     s = REALISTIC["cam_friction"]

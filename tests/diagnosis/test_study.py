@@ -8,7 +8,7 @@ import pytest
 from service.diagnosis import diagnose
 from service.diagnosis.diagnose import decide
 from service.diagnosis.study import run_gap_study
-from service.mechanics.prototype import EFFECT_NAMES, Effects
+from service.prototypes.a import EFFECT_NAMES, Effects
 from service.studies.commands import load_study
 
 

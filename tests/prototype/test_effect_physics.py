@@ -7,7 +7,7 @@ from scipy.integrate import cumulative_trapezoid
 
 from service.mechanics.closing import simulate_closing
 from service.mechanics.opening import simulate_opening
-from service.mechanics.prototype import (REALISTIC, Effects, make_prototype_simulator,
+from service.prototypes.a import (REALISTIC, Effects, make_prototype_simulator,
                                          prototype_state, simulate_prototype_opening)
 
 MU, ZETA, F_REF = 0.35, 0.05, 150.0

@@ -6,7 +6,7 @@ import pytest
 from service.acquisition.synthetic import synthesize_capture
 from service.mechanics.closing import simulate_closing
 from service.mechanics.opening import simulate_opening
-from service.mechanics.prototype import (EFFECT_NAMES, OPERATIONS, REALISTIC, Effects,
+from service.prototypes.a import (EFFECT_NAMES, OPERATIONS, REALISTIC, Effects,
                                          make_prototype_simulator, simulate_prototype_closing,
                                          simulate_prototype_opening)
 

@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 
 from service.acquisition.capture_file import read_capture
-from service.mechanics.prototype_b import (EFFECTS, OPERATIONS, OUTSIDE, REALISTIC, simulate_capture,
+from service.prototypes.b import (EFFECTS, OPERATIONS, OUTSIDE, REALISTIC, simulate_capture,
                                            write_dataset)
-from service.mechanics.prototype_b.dataset import dataset_plan, reference_mechanism
-from service.mechanics.prototype_b.effects import apply_effect
-from service.mechanics.prototype_b.laws import Laws
-from service.mechanics.prototype_b.mechanism import Effects
+from service.prototypes.b.dataset import dataset_plan, reference_mechanism
+from service.prototypes.b.effects import apply_effect
+from service.prototypes.b.laws import Laws
+from service.prototypes.b.mechanism import Effects
 
 LSB = np.pi / (2**16 - 1)
 

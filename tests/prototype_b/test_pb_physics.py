@@ -6,13 +6,13 @@ from scipy.integrate import quad
 
 from service.mechanics.closing import simulate_closing
 from service.mechanics.opening import simulate_opening
-from service.mechanics.prototype_b import EFFECTS, OPERATIONS
-from service.mechanics.prototype_b.closing_dynamics import simulate_closing_b
-from service.mechanics.prototype_b.dataset import reference_mechanism
-from service.mechanics.prototype_b.effects import apply_effect, draw_shape
-from service.mechanics.prototype_b.laws import Laws
-from service.mechanics.prototype_b.mechanism import Effects
-from service.mechanics.prototype_b.opening_dynamics import simulate_opening_b
+from service.prototypes.b import EFFECTS, OPERATIONS
+from service.prototypes.b.closing_dynamics import simulate_closing_b
+from service.prototypes.b.dataset import reference_mechanism
+from service.prototypes.b.effects import apply_effect, draw_shape
+from service.prototypes.b.laws import Laws
+from service.prototypes.b.mechanism import Effects
+from service.prototypes.b.opening_dynamics import simulate_opening_b
 
 FS = 128000.0
 T_OPEN, T_CLOSE = 0.09, 0.06

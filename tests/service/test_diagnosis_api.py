@@ -6,7 +6,7 @@ import numpy as np
 
 from comtrade_bytes import comtrade_pair
 from service.acquisition.synthetic import synthesize_capture
-from service.mechanics.prototype import Effects, make_prototype_simulator
+from service.prototypes.a import Effects, make_prototype_simulator
 
 
 def test_diagnosis_is_queued_then_served(env, breaker):

@@ -1,6 +1,6 @@
 """The virtual prototype: the reduced models plus optional physical effects (issue 6).
 
-    from service.mechanics.prototype import Effects, make_prototype_simulator
+    from service.prototypes.a import Effects, make_prototype_simulator
     sim = make_prototype_simulator(breaker, Effects(orifice_buffer=0.6), "open")
     synthesize_capture(breaker, "open", params, rng=rng, simulate=sim)
 

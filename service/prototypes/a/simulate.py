@@ -16,8 +16,8 @@ from collections.abc import Mapping
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from ..breaker import Breaker
-from ..trajectory import Trajectory
+from service.mechanics.breaker import Breaker
+from service.mechanics.trajectory import Trajectory
 from . import dynamics
 from .contact_wipe import TOUCH_FRACTION
 from .effects import EFFECT_NAMES, Effects, check_operation, effect_vector

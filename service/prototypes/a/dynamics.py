@@ -16,7 +16,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ..closing_kernel import _cam
+from service.mechanics.closing_kernel import _cam
 from .cam_friction import cam_load_factor
 from .contact_wipe import wipe_torque
 from .linkage_kinematics import inertia_ratio

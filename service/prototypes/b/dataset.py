@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import os
-from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -13,17 +12,7 @@ from service.acquisition.comtrade_writer import write_comtrade
 
 from .capture import simulate_capture
 from .effects import EFFECTS, OPERATIONS, OUTSIDE
-from .mechanism import Mechanism
-
-REFERENCE_BREAKER = Path(__file__).resolve().parents[3] / "config" / "breakers" / "reference-252kV.toml"
-
-
-@lru_cache(maxsize=4)
-def reference_mechanism(path: str | None = None) -> Mechanism:
-    """Nominal constants of a breaker file (the reference 252 kV breaker by default)."""
-    from service.breaker_file import load_breaker
-
-    return Mechanism.from_breaker(load_breaker(path or REFERENCE_BREAKER))
+from .reference import REFERENCE_BREAKER, reference_mechanism  # noqa: F401 (re-exported)
 
 
 def dataset_plan(*, seed: int, per_effect: int = 10, controls: int = 40,

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from ..breaker import Breaker
-from ..trajectory import Trajectory
+from service.mechanics.breaker import Breaker
+from service.mechanics.trajectory import Trajectory
 from .effects import Effects, check_operation
 from .simulate import simulate_prototype_closing, simulate_prototype_opening
 

@@ -19,6 +19,7 @@ from .effects import EFFECTS, OPERATIONS, OUTSIDE, apply_effect, draw_shape
 from .laws import Laws
 from .mechanism import Effects, Mechanism
 from .opening_dynamics import simulate_opening_b
+from .reference import reference_mechanism
 
 PRE_S = 0.02    # rest before the onset of motion [s]
 POST_S = 0.03   # kept after the end of the stroke [s]
@@ -94,7 +95,6 @@ def simulate_capture(operation: str, effect: str | None = None, strength: float 
             raise ValueError(f"effect {effect} acts only on {' and '.join(OPERATIONS[effect])} operations, "
                              f"not on {operation}")
     if mechanism is None:
-        from .dataset import reference_mechanism
         mechanism = reference_mechanism()
     mech = mechanism.spread(rng, spread)
     shape = draw_shape(effect, operation, rng) if effect is not None else {}
