@@ -190,3 +190,38 @@ def test_unreachable_database_captures_spooled_then_stored(tmp_path, db_url, bre
         monitor.stop()
         down.dispose()
         good.dispose()
+
+
+def test_a_fit_left_running_by_a_dead_worker_is_queued_again_without_a_restart(stack, breaker):
+    """A worker machine that vanished leaves its fit `running`; the sweep hands it on after the lease."""
+    from datetime import datetime, timedelta, timezone
+
+    from sqlalchemy import delete, update
+
+    from service.storage.models import ParameterValueRow
+
+    monitor, Session, settings = stack(fit_lease_s=60.0)
+    monitor.executor.start()
+    ops = [monitor.ingest(synth(breaker, "open", 40 + i), breaker_id=1, operation="open").operation_id
+           for i in range(2)]
+    _wait(Session, 2)
+    now = datetime.now(timezone.utc)
+    with Session() as s, s.begin():  # op 0 as a dead worker left it; op 1 is a fresh, live claim
+        s.execute(delete(ParameterValueRow).where(ParameterValueRow.operation_id == ops[0]))
+        s.execute(update(FitRow).where(FitRow.operation_id == ops[0])
+                  .values(status="running", attempts=1, started_at=now - timedelta(seconds=61)))
+        s.execute(update(FitRow).where(FitRow.operation_id == ops[1])
+                  .values(status="running", attempts=1, started_at=now - timedelta(seconds=5)))
+    assert monitor.requeue_stale() == 1
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        with Session() as s:
+            fit = s.scalar(select(FitRow).where(FitRow.operation_id == ops[0]))
+        if fit.status == "done":
+            break
+        time.sleep(0.05)
+    assert fit.status == "done" and fit.attempts == 2
+    with Session() as s:
+        live = s.scalar(select(FitRow).where(FitRow.operation_id == ops[1]))
+        assert live.status == "running" and live.attempts == 1  # within its lease: left alone
+    assert monitor.requeue_stale() == 0
