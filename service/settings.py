@@ -185,7 +185,6 @@ class Settings(BaseSettings):
     fit_seed: int = 1
     fit_function: str = Field("service.estimation:fit_capture",
                               description="module:function used by fit jobs (tests inject failures here)")
-    curve_points: int = Field(2000, ge=50, le=20000, description="fitted-curve points kept per fit")
     celery_visibility_timeout_s: int = Field(600, ge=10, description="Redis: an unacknowledged task whose "
                                              "worker machine vanished is redelivered after this long")
     celery_queue: str = Field("hvcb", min_length=1, max_length=100, pattern=r"^[A-Za-z0-9_.:-]+$",
