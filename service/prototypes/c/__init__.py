@@ -13,8 +13,6 @@ from .dataset import write_groups
 from .effects import EFFECTS, OPERATIONS, OUTSIDE, REALISTIC, check_effects, draw_shapes
 from .mechanism import Unit, draw_constants
 
-OPERATIONS = {k: v for k, v in OPERATIONS.items()}
-
 __all__ = ["EFFECTS", "OUTSIDE", "OPERATIONS", "REALISTIC", "Unit", "make_unit", "draw_conditions",
            "simulate_capture", "write_groups"]
 

@@ -10,7 +10,7 @@ from drivers.capture import Capture
 
 from . import closing, opening, sensor
 from . import effects as fx
-from .mechanism import Unit, applied, cam, reduced_params
+from .mechanism import Unit, applied, reduced_params
 
 PRE_S = 0.020            # rest before the latch releases the drive [s]
 SHOCK_LEAD_S = 0.0004    # the latch strike precedes motion by the latch's own travel time [s]
@@ -100,7 +100,6 @@ def simulate_capture(unit: Unit, operation: str, *, conditions=None, rng, noise_
                                   - closing.travel(model, sol, t_end, x), limit=t_end, tol=0.0)
             events.append((PRE_S + touch, rng.uniform(15.0, 30.0)))
         extra["t_travel_start_s"] = PRE_S + lift
-        _ = cam()
     travel = sensor.record_travel(true, s, unit.shapes, fs, noise_rad, rng)
     vib = sensor.vibration(t, events, rng)
     capture = Capture(travel=travel, sample_rate=fs, vibration=vib, source="prototype-c",
