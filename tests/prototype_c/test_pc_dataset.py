@@ -12,7 +12,8 @@ from service.prototypes.c.dataset import _plan
 def test_plan_has_every_group_kind():
     plan = _plan(np.random.default_rng(0), 4, 6, 4, 2)
     pairs = sum(len(OPERATIONS[n]) for n in EFFECTS)
-    assert len(plan) == 4 * pairs + 2 * 6 + 4 + 2 * 2 * 2
+    assert len(plan) == 4 * pairs + 2 * 6 + 4 + 2 * 2
+    assert sorted(op for op, e in plan if "sensor_lag" in e) == ["close", "open"]
     two = [(op, e) for op, e in plan if len(e) == 2]
     assert len(two) == 4 and all(all(op in OPERATIONS[n] for n in e) for op, e in two)
 

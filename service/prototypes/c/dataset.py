@@ -35,9 +35,9 @@ def _plan(rng: np.random.Generator, per_effect: int, controls: int, two_effect: 
         names = [n for n in EFFECTS if op in OPERATIONS[n]]
         a, b = rng.choice(len(names), size=2, replace=False)
         plan.append((op, {names[int(a)]: None, names[int(b)]: None}))
-    for name in OUTSIDE:
-        for op in OPERATIONS[name]:
-            plan += [(op, {name: None}) for _ in range(outside)]
+    for name in OUTSIDE:                 # ``outside`` groups per outside effect, operations alternating
+        ops = OPERATIONS[name]
+        plan += [(ops[i % len(ops)], {name: None}) for i in range(outside)]
     return plan
 
 
@@ -47,7 +47,8 @@ def write_groups(out_dir, *, seed: int, per_effect: int = 4, controls: int = 6, 
 
     per_effect groups for every (effect, operation) it acts on, ``controls`` healthy groups per
     operation, ``two_effect`` groups with two effects of one operation, ``outside`` groups per
-    (outside effect, operation). Strengths are uniform in 0.7-1.2; conditions are drawn per capture.
+    outside effect (operations alternating). Strengths are uniform in 0.7-1.2; conditions are
+    drawn per capture.
     Returns the manifest (list of group dicts). Deterministic for a seed.
     """
     for name, v in (("per_effect", per_effect), ("controls", controls), ("two_effect", two_effect),

@@ -163,13 +163,14 @@ def viscous_coeff(tof_design, s, sh):
 def buffer_damping_torque(omega, c_lin, s, sh, omega_eng):
     """Buffer damping torque [N m]; c_lin = cb rb^2 [N m s/rad]; omega_eng = nominal engagement speed.
 
-    Orifice: laminar share stays linear, the rest goes as omega|omega| / (f omega_eng).
+    Orifice: a share 1 - laminar_share**s of the damping goes as omega|omega| / (f omega_eng), the
+    rest stays linear (laminar leakage); the share saturates below 1 for strong effects.
     """
     if s == 0.0:
         return c_lin * omega
-    lam, ref = sh["laminar_share"], sh["ref_speed_factor"] * omega_eng
-    orifice = c_lin * (lam * omega + (1.0 - lam) * omega * abs(omega) / ref)
-    return (1.0 - s) * c_lin * omega + s * orifice
+    share = 1.0 - sh["laminar_share"] ** s      # orifice share: 1 - laminar share at s = 1, < 1 always
+    ref = sh["ref_speed_factor"] * omega_eng
+    return c_lin * omega * ((1.0 - share) + share * abs(omega) / ref)
 
 
 def contact_torque(travel_c, omega_c, s, sh):
@@ -206,7 +207,7 @@ def sensor_error(theta, s, sh):
 
 def rod_params(J_total, s, sh):
     """(J_rigid, J_elastic, K [N m/rad], C [N m s/rad]) of the elastic pull rod at strength s."""
-    je = s * sh["elastic_share"] * J_total
+    je = (1.0 - (1.0 - sh["elastic_share"]) ** s) * J_total    # e0 at s = 1, below J_total always
     jr = J_total - je
     mu = jr * je / J_total
     wn = 2 * math.pi * sh["freq_hz"]

@@ -28,7 +28,8 @@ RHO_FILL = P_FILL / (56.9 * 293.0)   # SF6 density at fill [kg/m^3]; R = 8.314/0
 P_EPS = 500.0                # [Pa] regularises the orifice law's sqrt at zero pressure difference
 EPS_W = 0.02                 # [rad/s] speed over which signed friction turns on (tanh)
 RTOL, ATOL = 1e-9, 1e-11
-PEAK_SPEED = 0.01            # [rad/s] speed taken as stopped: signed friction can leave a slow creep
+PEAK_SPEED = 0.05            # [rad/s] nearly stopped: the peak is then found within PEAK_SEARCH
+PEAK_SEARCH = 0.002          # [s]; with signed friction the shaft may creep instead of reversing
 HORIZON = 0.25               # [s] after release: the stroke must have peaked by then
 
 
@@ -178,9 +179,14 @@ def integrate(model: OpeningModel, after_peak: float, *, method: str = "DOP853",
                 events.setdefault("engage", t)
                 y[0] = a0 + (1e-12 if not engaged else -1e-12)
             elif phase == "rise":
-                events["peak"], phase, t_end = t, "fall", t + after_peak
-    if "peak" not in events:
+                events["slow"], phase, t_end = t, "fall", t + after_peak + PEAK_SEARCH
+    if "slow" not in events:
         raise RuntimeError("the opening did not reach its end of stroke within the horizon")
+    # the peak: where the speed crosses 0 shortly after it fell below PEAK_SPEED, else the creep start
+    grid = events["slow"] + np.arange(0.0, PEAK_SEARCH, 1e-7)
+    w = sample(segs, grid, 1)
+    stop = np.nonzero(w <= 0.0)[0]
+    events["peak"] = float(grid[stop[0]]) if stop.size else float(events["slow"])
     return segs, events
 
 
