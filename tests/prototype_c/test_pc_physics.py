@@ -78,16 +78,16 @@ def _reduced_opening(p, alpha0, t):
 
 
 def _reduced_closing(p, c, t):
-    """The paper's reduced closing model (Eq. 12) in theta1, Radau."""
+    """The paper's reduced closing model (Eq. 12) in theta1, LSODA."""
     cm, dc = cam(), c["kO"] * c["rO"] ** 2 / c["J2"]
 
     def f(_, y):
         q, w = y
-        g = (c["xC0"] - c["rC"] * (1 - np.cos(q))) / (c["d"] + c["rC"] * np.cos(q)) * np.sin(q)
-        h1 = cm.dh(q)
-        a = (p["AC"] * g - p["BC"] * h1 * (cm.d2h(q) * w * w + p["CC"] + dc * cm.h(q))) / (1 + p["BC"] * h1 ** 2)
+        g = (c["xC0"] - c["rC"] * (1 - math.cos(q))) / (c["d"] + c["rC"] * math.cos(q)) * math.sin(q)
+        h0, h1, h2 = cm.eval3(q)      # the cam table's spline (data shared; the equations are not)
+        a = (p["AC"] * g - p["BC"] * h1 * (h2 * w * w + p["CC"] + dc * h0)) / (1 + p["BC"] * h1 ** 2)
         return [w, a]
-    q = solve_ivp(f, (0, t[-1]), [c["theta1_start"], 0], t_eval=t, method="Radau", rtol=1e-11, atol=1e-13,
+    q = solve_ivp(f, (0, t[-1]), [c["theta1_start"], 0], t_eval=t, method="LSODA", rtol=1e-11, atol=1e-13,
                   max_step=1e-4).y[0]
     return 1.0 - cm.h(q)
 
