@@ -263,7 +263,7 @@ def _status(verdict, chosen, ambiguous) -> str:
 def _check_breaker(cap, breaker, operation):
     """A capture whose stroke is not the breaker's comes from another breaker (or channel)."""
     y = operation_coordinate(np.asarray(cap.travel, float), operation, breaker.stroke)
-    n = max(int(0.002 * cap.sample_rate), 4)
+    n = min(max(int(0.002 * cap.sample_rate), 4), y.size)
     # the largest average over n samples, over full windows only
     head, peak = float(np.median(y[:n])), float(np.max(uniform_filter1d(y, n)[n // 2: y.size - n + n // 2 + 1]))
     span = peak - head
