@@ -203,7 +203,7 @@ class Settings(BaseSettings):
                          "(service.alarms.settings.DriftSettings)")
     iec61850_port: int | None = Field(None, ge=1, le=65535,
                                       description="IEC 61850 (MMS) server port; empty = off (102 is the "
-                                      "standard port and needs privileges), see README")
+                                      "standard port and needs privileges), see docs/iec61850.md")
 
     @field_validator("iec61850_port", mode="before")
     @classmethod

@@ -23,11 +23,11 @@ from typing import Any, Iterable, Mapping
 
 import numpy as np
 from scipy import special
+from scipy.stats import median_abs_deviation  # scale="normal": MAD of a normal sample -> its sd
 
 from service.alarms.settings import DriftSettings
 
 Z95 = 1.959963984540054  # two-sided 95 % normal quantile: CI half-width = Z95 * stderr
-MAD_TO_SD = 1.482602218505602  # MAD of a normal sample -> its sd
 LEVELS = ("none", "warning", "alarm")
 STATE_VERSION = 1
 
@@ -124,7 +124,7 @@ def fit_baseline(operation_ids: Iterable, values: Iterable[float],
     x = np.asarray(list(values), dtype=float)
     median = float(np.median(x))
     floor = settings.sd_floor_rel * max(abs(median), 1e-12)
-    mad_sd = max(MAD_TO_SD * float(np.median(np.abs(x - median))), floor)
+    mad_sd = max(float(median_abs_deviation(x, scale="normal")), floor)
     # A fit is screened out only if it is far off in both senses: > screen_sigmas MAD-sigmas
     # and > screen_min_rel. The MAD of 20 fits is itself noisy; when it comes out small, a pure
     # MAD screen drops healthy fits and the sd collapses (false alarms). Keeping a doubtful fit

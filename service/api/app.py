@@ -14,23 +14,13 @@ from sqlalchemy.exc import DBAPIError, OperationalError
 
 from service.settings import Settings
 from service.storage import crud
-from service.storage.db import current_revision, head_revision, make_engine, session_factory
+from service.storage.db import make_engine, session_factory
+from service.storage.schema import NotMigrated, check_schema  # noqa: F401 (NotMigrated: callers catch it)
 
 from .deps import KeyCache, require
 from .metrics import build_registry, render
 
 log = logging.getLogger("hvcb.api")
-
-
-class NotMigrated(RuntimeError):
-    pass
-
-
-def check_schema(engine) -> None:
-    have, want = current_revision(engine), head_revision()
-    if have != want:
-        raise NotMigrated(f"the database is at migration {have or 'none'}, this code needs {want}: "
-                          f"run `hvcb migrate` (hvcb serve and hvcb demo do it for you)")
 
 
 def bootstrap(settings: Settings, Session) -> str | None:

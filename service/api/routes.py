@@ -2,11 +2,9 @@
 
 from __future__ import annotations
 
-import io
 import tempfile
 import time
 import tomllib
-import zipfile
 from datetime import datetime, timedelta, timezone
 from pathlib import Path
 from typing import Annotated, Literal
@@ -18,6 +16,7 @@ from fastapi.responses import Response
 from sqlalchemy.exc import IntegrityError
 
 from drivers.capture import CaptureError
+from service.jobs.upload import UploadRefused, capture_from_upload, read_capped
 from service.storage import crud
 from service.storage.fit_curve import fit_curve
 from service.storage.models import BreakerRow, utcnow
@@ -234,34 +233,6 @@ def get_curve(operation_id: OperationId, session: SessionDep, _: ReaderDep,
 
 
 # -- uploads -----------------------------------------------------------------------------------
-async def _read_capped(upload: UploadFile, budget: int) -> bytes:
-    data = await upload.read(budget + 1)
-    if len(data) > budget:
-        raise HTTPException(413, f"upload larger than the {budget} byte limit")
-    return data
-
-
-def _pair_from_zip(blob: bytes, cap: int) -> tuple[bytes, bytes, str]:
-    try:
-        zf = zipfile.ZipFile(io.BytesIO(blob))
-        infos = [i for i in zf.infolist() if not i.is_dir()]
-    except (zipfile.BadZipFile, ValueError, OSError) as exc:
-        raise HTTPException(422, f"not a readable zip archive: {exc}") from None
-    if sum(i.file_size for i in infos) > cap:
-        raise HTTPException(413, f"the archive expands beyond the {cap} byte limit")
-    cfgs = [i for i in infos if i.filename.lower().endswith(".cfg")]
-    if len(cfgs) != 1:
-        raise HTTPException(422, f"the zip must hold exactly one .cfg file, found {len(cfgs)}")
-    stem = cfgs[0].filename[:-4]
-    dats = [i for i in infos if i.filename[:-4] == stem and i.filename.lower().endswith(".dat")]
-    if len(dats) != 1:
-        raise HTTPException(422, f"the zip holds no .dat file matching {cfgs[0].filename}")
-    try:
-        return zf.read(cfgs[0]), zf.read(dats[0]), cfgs[0].filename
-    except (zipfile.BadZipFile, RuntimeError, OSError, ValueError) as exc:
-        raise HTTPException(422, f"cannot extract the archive: {exc}") from None
-
-
 def _duplicate(session, breaker_id: int, key: str, response: Response) -> s.UploadAccepted | None:
     """The operation already stored under this idempotency key, or None."""
     op = crud.get_operation_by_key(session, capture_key=key)
@@ -272,58 +243,6 @@ def _duplicate(session, breaker_id: int, key: str, response: Response) -> s.Uplo
                                  f"{op.breaker_id}, not {breaker_id}")
     response.status_code = 200
     return s.UploadAccepted(operation_id=op.id, capture_key=key, operation=op.kind, status="duplicate")
-
-
-def content_hash(cfg: bytes, dat: bytes) -> str:
-    """The capture's content hash: SHA-256 over the hex SHA-256 of the .cfg then the .dat
-    (``service.storage.spool.capture_digest`` of the two files)."""
-    import hashlib
-
-    return hashlib.sha256(hashlib.sha256(cfg).hexdigest().encode() + hashlib.sha256(dat).hexdigest().encode()
-                          ).hexdigest()
-
-
-def capture_from_upload(blobs: dict[str, bytes], row, operation: str | None, cap_bytes: int,
-                        idempotency_key: str | None = None):
-    """(Capture, "open"|"close") from uploaded files {lower-case name: bytes}: a .cfg and its .dat,
-    or one .zip holding them. Raises HTTPException (413/422) with the reason in words; the web page
-    uses it too."""
-    from service.acquisition.capture_file import load_comtrade_bytes
-
-    names = list(blobs)
-    if len(names) == 1 and names[0].endswith(".zip"):
-        cfg, dat, name = _pair_from_zip(blobs[names[0]], cap_bytes)
-    elif len(names) == 1 and names[0].endswith(".cff"):
-        cfg, dat, name = blobs[names[0]], None, names[0]
-    else:
-        cfg_names = [n for n in names if n.endswith(".cfg")]
-        dat_names = [n for n in names if n.endswith(".dat")]
-        if len(cfg_names) != 1 or len(dat_names) != 1 or len(names) != 2:
-            raise HTTPException(422, "send a COMTRADE .cfg and its .dat (two files), one .cff, "
-                                     "or one .zip holding a .cfg and its .dat")
-        cfg, dat, name = blobs[cfg_names[0]], blobs[dat_names[0]], cfg_names[0]
-    if idempotency_key is not None and content_hash(cfg, dat or b"") != idempotency_key:
-        raise HTTPException(422, "the Idempotency-Key is not the content hash of the uploaded .cfg and .dat "
-                                 "(damaged in transit, or the wrong key)")
-    breaker = crud.breaker_model(row)
-    try:
-        # the same reader as hvcb fit/detect/inspect: the same message for the same file
-        capture = load_comtrade_bytes(cfg, dat, source=f"upload:{name}",
-                                      travel_channel=breaker.channels.get("travel", "travel"),
-                                      vibration_channel=breaker.channels.get("vibration", "vibration"))
-        if capture.travel.size < 16:
-            raise CaptureError(f"{name}: the record holds fewer than 16 samples")
-        from service.jobs.ingest import infer_operation
-
-        kind = operation or infer_operation(capture)
-    except CaptureError as exc:
-        named = name.rsplit(".", 1)[0] + "." in str(exc)  # the reader names the .cfg or the .dat
-        raise HTTPException(422, str(exc) if named else f"{name}: {exc}") from None
-    except HTTPException:
-        raise
-    except Exception:  # a reader bug must not become a 500 for the client; the reader checks its input
-        raise HTTPException(422, f"{name}: the capture could not be read as COMTRADE") from None
-    return capture, kind
 
 
 @router.post("/breakers/{breaker_id}/captures", response_model=s.UploadAccepted, status_code=202,
@@ -352,11 +271,14 @@ async def upload_capture(breaker_id: BreakerId, request: Request, response: Resp
         if dup is not None:
             return dup
     blobs, budget = {}, cap_bytes
-    for f in files:
-        data = await _read_capped(f, budget)
-        budget -= len(data)
-        blobs[(f.filename or "").lower()] = data
-    capture, kind = capture_from_upload(blobs, row, operation, cap_bytes, idempotency_key=idempotency_key)
+    try:
+        for f in files:
+            data = await read_capped(f, budget)
+            budget -= len(data)
+            blobs[(f.filename or "").lower()] = data
+        capture, kind = capture_from_upload(blobs, row, operation, cap_bytes, idempotency_key=idempotency_key)
+    except UploadRefused as exc:
+        raise HTTPException(exc.status_code, exc.detail) from None
     session.close()
     source = "agent" if who.role == "agent" else "upload"
     result = await run_in_threadpool(monitor.ingest, capture, breaker_id=breaker_id, operation=kind, source=source,
@@ -447,8 +369,8 @@ def _scada_points(session, settings) -> list[s.ScadaPoint]:
     return points
 
 
-# Refits (hvcb refit through the API, admins only): their routes live with the refit package.
-from service.refit.api import router as _refit_router  # noqa: E402
+# Refits (hvcb refit through the API, admins only): their routes are in refits.py.
+from .refits import router as _refit_router  # noqa: E402
 
 router.include_router(_refit_router)
 

@@ -19,22 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from drivers.capture import Capture
-
-
-def _fsync_dir(path: Path) -> None:
-    try:
-        fd = os.open(path, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
-
-
-def _fsync_file(path: Path) -> None:
-    with open(path, "rb+") as fh:
-        os.fsync(fh.fileno())
+from service.durable import fsync_dir, fsync_file, write_durably
 
 
 def sha256_file(path: Path) -> str:
@@ -81,8 +66,8 @@ def write_capture_file(capture: Capture, directory: Path, key: str) -> tuple[Pat
         os.replace(tmp, main)
     files = capture_files(main)
     for p in files:
-        _fsync_file(p)
-    _fsync_dir(directory)
+        fsync_file(p)
+    fsync_dir(directory)
     return main, capture_digest(files)
 
 
@@ -100,14 +85,7 @@ class Spool:
     def put(self, entry: dict) -> Path:
         key = entry["capture_key"]
         path = self.directory / f"{key}.json"
-        tmp = path.with_suffix(".tmp")
-        with open(tmp, "w") as fh:
-            json.dump(entry, fh)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-        _fsync_dir(self.directory)
-        return path
+        return write_durably(path, json.dumps(entry))
 
     def remove(self, key: str) -> None:
         try:

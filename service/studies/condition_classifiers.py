@@ -9,6 +9,7 @@ stratified CV on the training fold only.
 from __future__ import annotations
 
 import numpy as np
+from scipy.stats import median_abs_deviation
 
 
 class NearestNominal:
@@ -44,7 +45,7 @@ class NearestNominal:
         else:
             resid = X - self.nominal_[np.searchsorted(self.classes_, y)]
             # Robust spread (MAD): one outlying fit must not flatten a parameter's weight.
-            scale = 1.4826 * np.median(np.abs(resid - np.median(resid, axis=0)), axis=0)
+            scale = median_abs_deviation(resid, axis=0, scale="normal")
         self.scale_ = np.where(scale > 0, scale, 1.0)
         return self
 

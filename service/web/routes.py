@@ -344,7 +344,7 @@ async def upload(request: Request, user: OperatorPost,
                  breaker_id: Annotated[int, Form(ge=1, le=MAX_ID)],
                  files: Annotated[list[UploadFile], File()],
                  operation: Annotated[str, Form(pattern="^(auto|open|close)$")] = "auto"):
-    from service.api.routes import _read_capped, capture_from_upload
+    from service.jobs.upload import UploadRefused, capture_from_upload, read_capped
 
     settings = request.app.state.settings
     cap_bytes = settings.max_upload_bytes
@@ -361,12 +361,12 @@ async def upload(request: Request, user: OperatorPost,
                 return form_error(f"there is no breaker {breaker_id}", 422)
             blobs, budget = {}, cap_bytes
             for f in files:
-                data = await _read_capped(f, budget)
+                data = await read_capped(f, budget)
                 budget -= len(data)
                 blobs[(f.filename or "").lower()] = data
             capture, kind = await run_in_threadpool(capture_from_upload, blobs, row,
                                                     None if operation == "auto" else operation, cap_bytes)
-    except HTTPException as exc:
+    except UploadRefused as exc:
         return form_error(str(exc.detail), exc.status_code)
     result = await run_in_threadpool(request.app.state.monitor.ingest, capture, breaker_id=breaker_id,
                                      operation=kind, source="upload")

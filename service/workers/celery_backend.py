@@ -66,7 +66,7 @@ def make_celery(broker_url: str, *, queue: str = "hvcb", key_prefix: str = "",
     @app.task(name="hvcb.refit_batch", acks_late=True, reject_on_worker_lost=True, **TRANSIENT_RETRY)
     def refit_batch_task(run_id: int, operation_ids: list):
         # A batch of one breaker's stored operations (``hvcb refit``); idempotent like the fit.
-        from service.refit.batch import refit_batch
+        from service.jobs.refit import refit_batch
 
         return refit_batch(int(run_id), [int(i) for i in operation_ids],
                            fixed if fixed is not None else worker_options())

@@ -9,6 +9,7 @@ are deleted at the end.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import subprocess
@@ -27,6 +28,7 @@ from service.settings import load_settings
 from service.storage import crud
 from service.storage.db import make_engine, session_factory, upgrade
 from service.storage.models import AlarmRow, DriftStateRow, FitRow, OperationRow, ParameterValueRow
+from service.storage.scratch import scratch_pg_database
 from service.workers import make_executor
 
 pytestmark = pytest.mark.redis
@@ -120,16 +122,9 @@ def celery_lane(tmp_path_factory):
     data_dir = base / "data"
     data_dir.mkdir()
     tag = uuid.uuid4().hex[:10]
-    pg_admin, pg_name = None, None
+    scratch = contextlib.ExitStack()
     if PG_URL and _reachable(PG_URL, 5432) is None:
-        from sqlalchemy import text
-        from sqlalchemy.engine import make_url
-
-        pg_admin = make_engine(PG_URL)
-        pg_name = f"hvcb_celery_{os.getpid()}_{tag}"
-        with pg_admin.connect().execution_options(isolation_level="AUTOCOMMIT") as conn:
-            conn.execute(text(f'CREATE DATABASE "{pg_name}"'))
-        url = make_url(PG_URL).set(database=pg_name).render_as_string(hide_password=False)
+        url = scratch.enter_context(scratch_pg_database(PG_URL, "hvcb_celery"))
     else:
         url = f"sqlite:///{data_dir / 'hvcb.sqlite3'}"
     upgrade(url)
@@ -157,12 +152,7 @@ def celery_lane(tmp_path_factory):
         if keys:
             client.delete(*keys)
         client.close()
-        if pg_admin is not None:
-            from sqlalchemy import text
-
-            with pg_admin.connect().execution_options(isolation_level="AUTOCOMMIT") as conn:
-                conn.execute(text(f'DROP DATABASE IF EXISTS "{pg_name}" WITH (FORCE)'))
-            pg_admin.dispose()
+        scratch.close()  # drops the PostgreSQL database, if one was made
 
 
 @pytest.fixture

@@ -1,0 +1,103 @@
+"""Uploaded capture files (a COMTRADE .cfg and its .dat, one .cff, or one .zip) into a Capture.
+
+The REST API's upload and the web page's upload form share this. A refusal is an
+``UploadRefused`` with the HTTP status it answers with and the reason in words.
+"""
+
+from __future__ import annotations
+
+import io
+import zipfile
+
+from drivers.capture import CaptureError
+from service.storage import crud
+
+
+class UploadRefused(ValueError):
+    """An upload that is not stored: ``status_code`` (413 too large, 422 unreadable) and ``detail``."""
+
+    def __init__(self, status_code: int, detail: str):
+        super().__init__(detail)
+        self.status_code = status_code
+        self.detail = detail
+
+
+async def read_capped(upload, budget: int) -> bytes:
+    """The bytes of one uploaded file (anything with an async ``read``), refused past ``budget``."""
+    data = await upload.read(budget + 1)
+    if len(data) > budget:
+        raise UploadRefused(413, f"upload larger than the {budget} byte limit")
+    return data
+
+
+def _pair_from_zip(blob: bytes, cap: int) -> tuple[bytes, bytes, str]:
+    try:
+        zf = zipfile.ZipFile(io.BytesIO(blob))
+        infos = [i for i in zf.infolist() if not i.is_dir()]
+    except (zipfile.BadZipFile, ValueError, OSError) as exc:
+        raise UploadRefused(422, f"not a readable zip archive: {exc}") from None
+    if sum(i.file_size for i in infos) > cap:
+        raise UploadRefused(413, f"the archive expands beyond the {cap} byte limit")
+    cfgs = [i for i in infos if i.filename.lower().endswith(".cfg")]
+    if len(cfgs) != 1:
+        raise UploadRefused(422, f"the zip must hold exactly one .cfg file, found {len(cfgs)}")
+    stem = cfgs[0].filename[:-4]
+    dats = [i for i in infos if i.filename[:-4] == stem and i.filename.lower().endswith(".dat")]
+    if len(dats) != 1:
+        raise UploadRefused(422, f"the zip holds no .dat file matching {cfgs[0].filename}")
+    try:
+        return zf.read(cfgs[0]), zf.read(dats[0]), cfgs[0].filename
+    except (zipfile.BadZipFile, RuntimeError, OSError, ValueError) as exc:
+        raise UploadRefused(422, f"cannot extract the archive: {exc}") from None
+
+
+def content_hash(cfg: bytes, dat: bytes) -> str:
+    """The capture's content hash: SHA-256 over the hex SHA-256 of the .cfg then the .dat
+    (``service.storage.spool.capture_digest`` of the two files)."""
+    import hashlib
+
+    return hashlib.sha256(hashlib.sha256(cfg).hexdigest().encode() + hashlib.sha256(dat).hexdigest().encode()
+                          ).hexdigest()
+
+
+def capture_from_upload(blobs: dict[str, bytes], row, operation: str | None, cap_bytes: int,
+                        idempotency_key: str | None = None):
+    """(Capture, "open"|"close") from uploaded files {lower-case name: bytes}: a .cfg and its .dat,
+    or one .zip holding them. Raises UploadRefused (413/422) with the reason in words; the web page
+    uses it too."""
+    from service.acquisition.capture_file import load_comtrade_bytes
+
+    names = list(blobs)
+    if len(names) == 1 and names[0].endswith(".zip"):
+        cfg, dat, name = _pair_from_zip(blobs[names[0]], cap_bytes)
+    elif len(names) == 1 and names[0].endswith(".cff"):
+        cfg, dat, name = blobs[names[0]], None, names[0]
+    else:
+        cfg_names = [n for n in names if n.endswith(".cfg")]
+        dat_names = [n for n in names if n.endswith(".dat")]
+        if len(cfg_names) != 1 or len(dat_names) != 1 or len(names) != 2:
+            raise UploadRefused(422, "send a COMTRADE .cfg and its .dat (two files), one .cff, "
+                                     "or one .zip holding a .cfg and its .dat")
+        cfg, dat, name = blobs[cfg_names[0]], blobs[dat_names[0]], cfg_names[0]
+    if idempotency_key is not None and content_hash(cfg, dat or b"") != idempotency_key:
+        raise UploadRefused(422, "the Idempotency-Key is not the content hash of the uploaded .cfg and .dat "
+                                 "(damaged in transit, or the wrong key)")
+    breaker = crud.breaker_model(row)
+    try:
+        # the same reader as hvcb fit/detect/inspect: the same message for the same file
+        capture = load_comtrade_bytes(cfg, dat, source=f"upload:{name}",
+                                      travel_channel=breaker.channels.get("travel", "travel"),
+                                      vibration_channel=breaker.channels.get("vibration", "vibration"))
+        if capture.travel.size < 16:
+            raise CaptureError(f"{name}: the record holds fewer than 16 samples")
+        from service.jobs.ingest import infer_operation
+
+        kind = operation or infer_operation(capture)
+    except CaptureError as exc:
+        named = name.rsplit(".", 1)[0] + "." in str(exc)  # the reader names the .cfg or the .dat
+        raise UploadRefused(422, str(exc) if named else f"{name}: {exc}") from None
+    except UploadRefused:
+        raise
+    except Exception:  # a reader bug must not become a 500 for the client; the reader checks its input
+        raise UploadRefused(422, f"{name}: the capture could not be read as COMTRADE") from None
+    return capture, kind
