@@ -7,6 +7,8 @@ import tempfile
 import time
 import tomllib
 import zipfile
+import zlib
+from dataclasses import dataclass
 from datetime import datetime, timedelta, timezone
 from pathlib import Path
 from typing import Annotated, Literal
@@ -18,6 +20,7 @@ from fastapi.responses import Response
 from sqlalchemy.exc import IntegrityError
 
 from drivers.capture import CaptureError
+from service.errors import redact_paths
 from service.storage import crud
 from service.storage.models import utcnow
 
@@ -205,19 +208,21 @@ def get_diagnosis(operation_id: OperationId, request: Request, response: Respons
             responses={**AUTH, **NOT_FOUND, 410: {"model": s.Message}}, tags=["operations"])
 def get_curve(operation_id: OperationId, session: SessionDep, _: ReaderDep,
               points: Annotated[int, Query(ge=10, le=5000, description="samples returned")] = 1000):
-    from service.acquisition.capture_file import read_capture
+    from service.acquisition.capture_file import read_stored_capture
 
     op = crud.get_operation(session, operation_id=operation_id)
     if op is None:
         raise HTTPException(404, f"no operation {operation_id}")
+    breaker = crud.breaker_model(crud.get_breaker(session, breaker_id=op.breaker_id))
+    fit = op.fit
+    session.close()  # the file is read and the answer built without holding a connection
     try:
-        cap = read_capture(op.capture_path)
+        cap = read_stored_capture(op.capture_path, breaker)
     except CaptureError as exc:
-        raise HTTPException(410, f"the capture file is no longer readable: {exc}") from None
+        raise HTTPException(410, f"the capture file is no longer readable: {redact_paths(str(exc))}") from None
     idx = np.unique(np.linspace(0, cap.travel.size - 1, min(points, cap.travel.size)).astype(int))
     t, measured = cap.t[idx], cap.travel[idx]
     fitted = residual = window = None
-    fit = op.fit
     if fit is not None and fit.status == "done" and fit.curve:
         ft, fv = np.asarray(fit.curve["t"]), np.asarray(fit.curve["fitted"])
         inside = (t >= ft[0]) & (t <= ft[-1])
@@ -232,11 +237,28 @@ def get_curve(operation_id: OperationId, session: SessionDep, _: ReaderDep,
 
 
 # -- uploads -----------------------------------------------------------------------------------
+ZIP_CHUNK = 64 * 1024  # bytes produced per decompression step: memory per step is bounded by this
+MAX_ZIP_MEMBERS = 64
+
+
 async def _read_capped(upload: UploadFile, budget: int) -> bytes:
     data = await upload.read(budget + 1)
     if len(data) > budget:
         raise HTTPException(413, f"upload larger than the {budget} byte limit")
     return data
+
+
+def _inflate(zf: zipfile.ZipFile, info: zipfile.ZipInfo, budget: int) -> bytes:
+    """A member's bytes, decompressed in steps of ZIP_CHUNK and cut at ``budget`` bytes produced.
+    The sizes written in the zip's headers are not trusted: a member that expands beyond what
+    its header says fails its CRC (422), one that expands beyond the budget is refused (413)."""
+    out = bytearray()
+    with zf.open(info) as fh:
+        while chunk := fh.read(ZIP_CHUNK):
+            out += chunk
+            if len(out) > budget:
+                raise HTTPException(413, f"the archive expands beyond the {budget} byte limit")
+    return bytes(out)
 
 
 def _pair_from_zip(blob: bytes, cap: int) -> tuple[bytes, bytes, str]:
@@ -245,7 +267,9 @@ def _pair_from_zip(blob: bytes, cap: int) -> tuple[bytes, bytes, str]:
         infos = [i for i in zf.infolist() if not i.is_dir()]
     except (zipfile.BadZipFile, ValueError, OSError) as exc:
         raise HTTPException(422, f"not a readable zip archive: {exc}") from None
-    if sum(i.file_size for i in infos) > cap:
+    if len(infos) > MAX_ZIP_MEMBERS:
+        raise HTTPException(422, f"the zip holds {len(infos)} files; a capture is a .cfg and its .dat")
+    if sum(i.file_size for i in infos) > cap:  # an honest header is refused at once
         raise HTTPException(413, f"the archive expands beyond the {cap} byte limit")
     cfgs = [i for i in infos if i.filename.lower().endswith(".cfg")]
     if len(cfgs) != 1:
@@ -255,12 +279,14 @@ def _pair_from_zip(blob: bytes, cap: int) -> tuple[bytes, bytes, str]:
     if len(dats) != 1:
         raise HTTPException(422, f"the zip holds no .dat file matching {cfgs[0].filename}")
     try:
-        return zf.read(cfgs[0]), zf.read(dats[0]), cfgs[0].filename
-    except (zipfile.BadZipFile, RuntimeError, OSError, ValueError) as exc:
+        cfg = _inflate(zf, cfgs[0], cap)
+        dat = _inflate(zf, dats[0], cap - len(cfg))
+    except (zipfile.BadZipFile, RuntimeError, OSError, ValueError, EOFError, zlib.error) as exc:
         raise HTTPException(422, f"cannot extract the archive: {exc}") from None
+    return cfg, dat, Path(cfgs[0].filename).name
 
 
-def _duplicate(session, breaker_id: int, key: str, response: Response) -> s.UploadAccepted | None:
+def _duplicate(session, breaker_id: int, key: str) -> s.UploadAccepted | None:
     """The operation already stored under this idempotency key, or None."""
     op = crud.get_operation_by_key(session, capture_key=key)
     if op is None:
@@ -268,7 +294,6 @@ def _duplicate(session, breaker_id: int, key: str, response: Response) -> s.Uplo
     if op.breaker_id != breaker_id:
         raise HTTPException(409, f"this capture (Idempotency-Key {key[:12]}...) is stored under breaker "
                                  f"{op.breaker_id}, not {breaker_id}")
-    response.status_code = 200
     return s.UploadAccepted(operation_id=op.id, capture_key=key, operation=op.kind, status="duplicate")
 
 
@@ -281,11 +306,23 @@ def content_hash(cfg: bytes, dat: bytes) -> str:
                           ).hexdigest()
 
 
+@dataclass(frozen=True)
+class Upload:
+    """An accepted upload: the capture read with the breaker's channel names, and the files as
+    sent ({".cfg": bytes, ".dat": bytes} or {".cff": bytes}), stored byte for byte."""
+
+    capture: object
+    kind: str
+    files: dict
+    name: str
+
+
 def capture_from_upload(blobs: dict[str, bytes], row, operation: str | None, cap_bytes: int,
-                        idempotency_key: str | None = None):
-    """(Capture, "open"|"close") from uploaded files {lower-case name: bytes}: a .cfg and its .dat,
-    or one .zip holding them. Raises HTTPException (413/422) with the reason in words; the web page
-    uses it too."""
+                        idempotency_key: str | None = None) -> Upload:
+    """The upload read from files {lower-case name: bytes}: a .cfg and its .dat, or one .cff,
+    or one .zip holding a .cfg and its .dat. Raises HTTPException (413/422) with the reason in
+    words; the web page uses it too. CPU and memory heavy: call it off the event loop
+    (``parse_upload``)."""
     from service.acquisition.capture_file import load_comtrade_bytes
 
     names = list(blobs)
@@ -300,6 +337,7 @@ def capture_from_upload(blobs: dict[str, bytes], row, operation: str | None, cap
             raise HTTPException(422, "send a COMTRADE .cfg and its .dat (two files), one .cff, "
                                      "or one .zip holding a .cfg and its .dat")
         cfg, dat, name = blobs[cfg_names[0]], blobs[dat_names[0]], cfg_names[0]
+    name = Path(name).name
     if idempotency_key is not None and content_hash(cfg, dat or b"") != idempotency_key:
         raise HTTPException(422, "the Idempotency-Key is not the content hash of the uploaded .cfg and .dat "
                                  "(damaged in transit, or the wrong key)")
@@ -321,7 +359,40 @@ def capture_from_upload(blobs: dict[str, bytes], row, operation: str | None, cap
         raise
     except Exception:  # a reader bug must not become a 500 for the client; the reader checks its input
         raise HTTPException(422, f"{name}: the capture could not be read as COMTRADE") from None
-    return capture, kind
+    files = {".cff": cfg} if dat is None else {".cfg": cfg, ".dat": dat}
+    return Upload(capture, kind, files, name)
+
+
+async def parse_upload(request: Request, blobs: dict[str, bytes], row, operation: str | None,
+                       idempotency_key: str | None = None) -> Upload:
+    """``capture_from_upload`` on a worker thread, at most ``[server] upload_parsers`` at once:
+    the event loop (and /healthz) never waits for a parse, and the memory of parses in flight
+    is bounded (docs/security.md)."""
+    import asyncio
+
+    state = request.app.state
+    if state.upload_slots is None:
+        state.upload_slots = asyncio.Semaphore(state.settings.server.upload_parsers)
+    async with state.upload_slots:
+        return await run_in_threadpool(capture_from_upload, blobs, row, operation,
+                                       state.settings.max_upload_bytes, idempotency_key)
+
+
+def ingest_upload(monitor, settings, upload: Upload, *, breaker_id: int, source: str, capture_key: str | None):
+    """Store the files as sent (fsynced) and hand the operation to the monitor (worker thread)."""
+    from service.storage.spool import Spool, write_capture_bytes
+
+    key = capture_key or Spool.new_key()
+    now = utcnow()
+    path = write_capture_bytes(upload.files, settings.capture_dir / now.strftime("%Y") / now.strftime("%m%d"), key)
+    return monitor.ingest(upload.capture, breaker_id=breaker_id, operation=upload.kind, source=source,
+                          capture_path=path, capture_key=key)
+
+
+def _upload_context(session, breaker_id: int, idempotency_key: str | None):
+    row = _breaker_or_404(session, breaker_id)
+    dup = _duplicate(session, breaker_id, idempotency_key, ) if idempotency_key is not None else None
+    return row, dup
 
 
 @router.post("/breakers/{breaker_id}/captures", response_model=s.UploadAccepted, status_code=202,
@@ -329,7 +400,7 @@ def capture_from_upload(blobs: dict[str, bytes], row, operation: str | None, cap
                                                    "description": "stored before under this Idempotency-Key"},
                         409: {"model": s.Message}, 413: {"model": s.Message}, 422: {"model": s.Message}},
              tags=["operations"])
-async def upload_capture(breaker_id: BreakerId, request: Request, response: Response, session: SessionDep,
+async def upload_capture(breaker_id: BreakerId, request: Request, response: Response,
                          settings: SettingsDep, monitor: MonitorDep, who: UploaderDep,
                          files: Annotated[list[UploadFile], File(description="a .cfg and its .dat, one .cff, or one .zip")],
                          operation: Annotated[Literal["open", "close"] | None,
@@ -339,27 +410,29 @@ async def upload_capture(breaker_id: BreakerId, request: Request, response: Resp
                              description="the capture's content hash (SHA-256 of the hex SHA-256 of the .cfg "
                                          "then the .dat): a retry answers with the stored operation")] = None):
     """Upload one capture (operator, admin or agent key). With ``Idempotency-Key`` a capture is
-    stored once however often it is sent: a repeat answers 200 with the existing operation."""
+    stored once however often it is sent: a repeat answers 200 with the existing operation.
+    The key is checked from the headers before the body is read, and the body is cut at
+    ``max_upload_bytes`` (docs/security.md). The files are stored byte for byte as sent."""
     cap_bytes = settings.max_upload_bytes
-    declared = request.headers.get("content-length")
-    if declared and declared.isdigit() and int(declared) > cap_bytes + 64 * 1024:
-        raise HTTPException(413, f"upload larger than the {cap_bytes} byte limit")
-    row = _breaker_or_404(session, breaker_id)
-    if idempotency_key is not None:
-        dup = _duplicate(session, breaker_id, idempotency_key, response)
-        if dup is not None:
-            return dup
+
+    def context():
+        with request.app.state.Session() as session:
+            return _upload_context(session, breaker_id, idempotency_key)
+
+    row, dup = await run_in_threadpool(context)
+    if dup is not None:
+        response.status_code = 200
+        return dup
     blobs, budget = {}, cap_bytes
     for f in files:
         data = await _read_capped(f, budget)
         budget -= len(data)
         blobs[(f.filename or "").lower()] = data
-    capture, kind = capture_from_upload(blobs, row, operation, cap_bytes, idempotency_key=idempotency_key)
-    session.close()
+    upload = await parse_upload(request, blobs, row, operation, idempotency_key)
     source = "agent" if who.role == "agent" else "upload"
-    result = await run_in_threadpool(monitor.ingest, capture, breaker_id=breaker_id, operation=kind, source=source,
+    result = await run_in_threadpool(ingest_upload, monitor, settings, upload, breaker_id=breaker_id, source=source,
                                      capture_key=idempotency_key)
-    return s.UploadAccepted(operation_id=result.operation_id, capture_key=result.capture_key, operation=kind,
+    return s.UploadAccepted(operation_id=result.operation_id, capture_key=result.capture_key, operation=upload.kind,
                             status="spooled" if result.spooled else "queued")
 
 

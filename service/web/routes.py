@@ -230,15 +230,14 @@ def operation_page(request: Request, operation_id: Id, user: Reader):
 
 @router.get("/ui/operations/{operation_id}/curves.json")
 def operation_curves_json(request: Request, operation_id: Id, user: Reader):
-    from service.acquisition.capture_file import read_capture
+    from service.acquisition.capture_file import read_stored_capture
 
     with _session(request) as session:
         op = crud.get_operation(session, operation_id=operation_id) or _not_found(f"operation {operation_id}")
         breaker = crud.breaker_model(crud.get_breaker(session, breaker_id=op.breaker_id))
         fit, path = op.fit, op.capture_path
         try:
-            cap = read_capture(path, travel_channel=breaker.channels.get("travel", "travel"),
-                               vibration_channel=breaker.channels.get("vibration", "vibration"))
+            cap = read_stored_capture(path, breaker)
         except CaptureError as exc:
             cap = _pruned_preview(session, op.id)
             if cap is None:
@@ -344,35 +343,38 @@ async def upload(request: Request, user: OperatorPost,
                  breaker_id: Annotated[int, Form(ge=1, le=MAX_ID)],
                  files: Annotated[list[UploadFile], File()],
                  operation: Annotated[str, Form(pattern="^(auto|open|close)$")] = "auto"):
-    from service.api.routes import _read_capped, capture_from_upload
+    from service.api.routes import _read_capped, ingest_upload, parse_upload
 
     settings = request.app.state.settings
     cap_bytes = settings.max_upload_bytes
 
     def form_error(message: str, status: int):
         with _session(request) as session:
-            return page(request, "upload.html", {"breakers": crud.list_breakers(session), "nav": "upload",
-                                                 "error": message, "chosen": breaker_id}, status_code=status)
+            breakers = crud.list_breakers(session)
+        return page(request, "upload.html", {"breakers": breakers, "nav": "upload", "error": message,
+                                             "chosen": breaker_id}, status_code=status)
+
+    def breaker_row():
+        with _session(request) as session:
+            return crud.get_breaker(session, breaker_id=breaker_id)
 
     try:
-        with _session(request) as session:
-            row = crud.get_breaker(session, breaker_id=breaker_id)
-            if row is None:
-                return form_error(f"there is no breaker {breaker_id}", 422)
-            blobs, budget = {}, cap_bytes
-            for f in files:
-                data = await _read_capped(f, budget)
-                budget -= len(data)
-                blobs[(f.filename or "").lower()] = data
-            capture, kind = await run_in_threadpool(capture_from_upload, blobs, row,
-                                                    None if operation == "auto" else operation, cap_bytes)
+        row = await run_in_threadpool(breaker_row)
+        if row is None:
+            return await run_in_threadpool(form_error, f"there is no breaker {breaker_id}", 422)
+        blobs, budget = {}, cap_bytes
+        for f in files:
+            data = await _read_capped(f, budget)
+            budget -= len(data)
+            blobs[(f.filename or "").lower()] = data
+        upload = await parse_upload(request, blobs, row, None if operation == "auto" else operation)
     except HTTPException as exc:
-        return form_error(str(exc.detail), exc.status_code)
-    result = await run_in_threadpool(request.app.state.monitor.ingest, capture, breaker_id=breaker_id,
-                                     operation=kind, source="upload")
+        return await run_in_threadpool(form_error, str(exc.detail), exc.status_code)
+    result = await run_in_threadpool(ingest_upload, request.app.state.monitor, settings, upload,
+                                     breaker_id=breaker_id, source="upload", capture_key=None)
     if result.operation_id is None:
-        return form_error("the database is unavailable: the capture is kept in the spool and will be "
-                          "stored and fitted when it answers again", 202)
+        return await run_in_threadpool(form_error, "the database is unavailable: the capture is kept in the spool "
+                                       "and will be stored and fitted when it answers again", 202)
     return security_headers(RedirectResponse(f"/operations/{result.operation_id}", status_code=303))
 
 
