@@ -3,9 +3,7 @@
 from __future__ import annotations
 
 import io
-import tempfile
 import time
-import tomllib
 import zipfile
 import zlib
 from dataclasses import dataclass
@@ -71,17 +69,15 @@ def get_breaker(breaker_id: BreakerId, session: SessionDep, _: ReaderDep):
 @router.post("/breakers", response_model=s.BreakerPublic, status_code=201, responses={**AUTH, 409: {"model": s.Message},
              422: {"model": s.Message}}, tags=["breakers"])
 def create_breaker(body: s.BreakerCreate, session: SessionDep, _: AdminDep):
-    from service.breaker_file import load_breaker
+    from service.breaker_file import BreakerFileError, breaker_from_text, parse_breaker_text
 
     try:
-        data = tomllib.loads(body.breaker_file)
-        cam_name = Path(str(data["cam"]["profile"])).name
-        with tempfile.TemporaryDirectory() as tmp:
-            (Path(tmp) / cam_name).write_text(body.cam_table)
-            (Path(tmp) / "breaker.toml").write_text(body.breaker_file.replace(str(data["cam"]["profile"]), cam_name))
-            breaker = load_breaker(Path(tmp) / "breaker.toml")
-    except (tomllib.TOMLDecodeError, KeyError, TypeError, ValueError, OSError) as exc:
+        breaker = breaker_from_text(body.breaker_file, body.cam_table, source="(sent)")
+        cam_name = parse_breaker_text(body.breaker_file, source="(sent)").cam.profile
+    except BreakerFileError as exc:
         raise HTTPException(422, f"invalid breaker file: {exc}") from None
+    if parse_breaker_text(body.breaker_file, source="(sent)").name is None:
+        raise HTTPException(422, "invalid breaker file: give the breaker a `name`")
     if crud.get_breaker_by_name(session, name=breaker.name) is not None:
         raise HTTPException(409, f"a breaker named {breaker.name!r} exists")
     try:

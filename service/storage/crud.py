@@ -4,9 +4,7 @@ from __future__ import annotations
 
 import hashlib
 import secrets
-import tempfile
 import threading
-import tomllib
 from datetime import datetime
 from pathlib import Path
 
@@ -23,15 +21,15 @@ ROLE_RANK = {"agent": -1, "reader": 0, "operator": 1, "admin": 2}
 # -- breakers ----------------------------------------------------------------------------------
 def register_breaker_file(session: Session, *, path: Path, tag: str | None = None) -> BreakerRow:
     """Create or refresh the breaker described by the breaker file at ``path`` (and its cam table)."""
-    from service.breaker_file import load_breaker
+    from service.breaker_file import load_breaker, parse_breaker_text
 
     path = Path(path)
     breaker = load_breaker(path)  # validates before anything is stored
     text = path.read_text()
-    cam_name = tomllib.loads(text)["cam"]["profile"]
+    cam_name = parse_breaker_text(text, source=str(path)).cam.profile
     cam_text = (path.parent / cam_name).read_text()
     return upsert_breaker(session, name=breaker.name, tag=tag, breaker_file=text,
-                          cam_file_name=Path(cam_name).name, cam_table=cam_text)
+                          cam_file_name=cam_name, cam_table=cam_text)
 
 
 def upsert_breaker(session: Session, *, name: str, breaker_file: str, cam_file_name: str,
@@ -71,19 +69,14 @@ _breaker_lock = threading.Lock()
 
 def breaker_model(row: BreakerRow):
     """The ``Breaker`` stored in ``row`` (materialised once per content hash and process)."""
-    from service.breaker_file import load_breaker
+    from service.breaker_file import breaker_from_text
 
     with _breaker_lock:
         hit = _breaker_cache.get(row.content_sha256)
         if hit is not None:
             return hit
-        with tempfile.TemporaryDirectory(prefix="hvcb-breaker-") as tmp:
-            text = row.breaker_file
-            data = tomllib.loads(text)
-            (Path(tmp) / Path(data["cam"]["profile"]).name).write_text(row.cam_table)
-            text = text.replace(data["cam"]["profile"], Path(data["cam"]["profile"]).name)
-            (Path(tmp) / "breaker.toml").write_text(text)
-            breaker = load_breaker(Path(tmp) / "breaker.toml")
+        breaker = breaker_from_text(row.breaker_file, row.cam_table, source=f"of breaker {row.name!r}",
+                                    default_name=row.name)
         _breaker_cache[row.content_sha256] = breaker
         return breaker
 
