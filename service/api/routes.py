@@ -144,9 +144,12 @@ def breaker_health(breaker_id: BreakerId, session: SessionDep, settings: Setting
 def parameter_trend(breaker_id: BreakerId, session: SessionDep, _: ReaderDep,
                     name: Annotated[s.ParameterName, Query(description="parameter, e.g. DO")],
                     since: Annotated[datetime | None, Query(description="ISO-8601; UTC when no zone")] = None,
-                    limit: Annotated[int, Query(ge=1, le=20000)] = 5000):
+                    limit: Annotated[int, Query(ge=1, le=20000)] = 5000,
+                    include_clock_suspect: Annotated[bool, Query(
+                        description="also values of clock-suspect operations (left out by default)")] = False):
     _breaker_or_404(session, breaker_id)
-    rows = crud.parameter_trend(session, breaker_id=breaker_id, name=name, since=_utc(since), limit=limit)
+    rows = crud.parameter_trend(session, breaker_id=breaker_id, name=name, since=_utc(since), limit=limit,
+                                clock_suspect=None if include_clock_suspect else False)
     points = [s.TrendPoint(time=r.occurred_at, value=r.value, operation_id=r.operation_id, identifiable=r.identifiable,
                            ci95=[r.ci_low, r.ci_high] if r.ci_low is not None and r.ci_high is not None else None)
               for r in rows]
@@ -156,9 +159,11 @@ def parameter_trend(breaker_id: BreakerId, session: SessionDep, _: ReaderDep,
 @router.get("/breakers/{breaker_id}/operations", response_model=list[s.OperationPublic],
             responses={**AUTH, **NOT_FOUND}, tags=["operations"])
 def list_operations(breaker_id: BreakerId, session: SessionDep, _: ReaderDep,
-                    limit: Annotated[int, Query(ge=1, le=1000)] = 50):
+                    limit: Annotated[int, Query(ge=1, le=1000)] = 50,
+                    clock_suspect: Annotated[bool | None, Query(
+                        description="true: only clock-suspect operations; false: none of them; omitted: all")] = None):
     _breaker_or_404(session, breaker_id)
-    return crud.list_operations(session, breaker_id=breaker_id, limit=limit)
+    return crud.list_operations(session, breaker_id=breaker_id, limit=limit, clock_suspect=clock_suspect)
 
 
 @router.get("/operations/{operation_id}", response_model=s.OperationPublic, responses={**AUTH, **NOT_FOUND},

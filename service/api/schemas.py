@@ -91,6 +91,8 @@ class OperationPublic(ORM):
     flags: list[str]
     sample_rate: float
     n_samples: int
+    clock_suspect: bool = Field(False, description="dated more than clock_tolerance_s after it arrived: "
+                                "not latest, not on SCADA, not in the drift baseline")
     fit: FitPublic | None = None
 
 
