@@ -6,6 +6,7 @@ updates fetch sits under ``/ui/``. Both authenticate with the session cookie, ne
 
 from __future__ import annotations
 
+import asyncio
 import io
 import zipfile
 from datetime import timedelta
@@ -87,10 +88,26 @@ async def signin(request: Request, api_key: Annotated[str, Form(max_length=400)]
         return _signin_page(request, next=next, error="the sign-in form expired: try again", status=403)
     if not api_key.strip():
         return _signin_page(request, next=next, error="enter your API key", status=401)
+    from service.api.guard import client_address
+
+    throttle, address = request.app.state.auth_throttle, client_address(request.scope)
+    wait = throttle.blocked_for(address)
+    if wait > 0:
+        resp = _signin_page(request, next=next, status=429,
+                            error=f"too many wrong keys from this address: try again in {wait:.0f} s")
+        resp.headers["Retry-After"] = str(max(1, round(wait)))
+        return resp
     try:
         cookie, _ = await run_in_threadpool(auth.sign_in, request, api_key)
     except WebAuthError as exc:
+        if exc.kind == "signin" and exc.message.startswith("unknown"):
+            delay = throttle.failed(address, "sign-ins")
+            if delay:
+                await asyncio.sleep(delay)
         return _signin_page(request, next=next, error=exc.message, status=401)
+    throttle.succeeded(address)
+    # a new session on every sign-in; the one this browser carried before ends now (D15)
+    await run_in_threadpool(auth.end_presented_session, request)
     resp = RedirectResponse(_safe_next(next), status_code=303)
     auth.set_cookie(resp, request, auth.COOKIE, cookie, max_age=int(request.app.state.web_signer.lifetime_s))
     resp.delete_cookie(auth.PRE_COOKIE, path="/signin")
@@ -154,7 +171,7 @@ def fleet(request: Request, user: Reader):
     settings = request.app.state.settings
     with _session(request) as session:
         rows = _fleet(session, settings)
-        resp = page(request, "fleet.html", {"rows": rows, "nav": "fleet"})
+    resp = page(request, "fleet.html", {"rows": rows, "nav": "fleet"})  # rendered with the connection back
     # engineers go from here to a breaker: have its trends ready (a long history takes a moment)
     resp.background = BackgroundTask(request.app.state.web_trends.warm, request.app.state.Session,
                                      [r["breaker"].id for r in rows], settings)
@@ -177,7 +194,7 @@ def breaker_page(request: Request, breaker_id: Id, user: Reader,
                "last": crud_web.last_operation_times(session, breaker_id=b.id),
                "watched": dict(settings.drift_settings.watched), "nav": "fleet",
                "OPENING": OPENING, "CLOSING": CLOSING, "CHARACTERISTICS": CHARACTERISTICS}
-        return page(request, "breaker.html", ctx)
+    return page(request, "breaker.html", ctx)
 
 
 @router.get("/ui/breakers/{breaker_id}/trends.json")
@@ -225,7 +242,7 @@ def operation_page(request: Request, operation_id: Id, user: Reader):
         names = OPENING if op.kind == "open" else CLOSING
         ctx = {"op": op, "b": b, "fit": op.fit, "diag": diag, "names": names, "units": UNITS,
                "CHARACTERISTICS": CHARACTERISTICS, "nav": "fleet", "pruned": pruned}
-        return page(request, "operation.html", ctx)
+    return page(request, "operation.html", ctx)
 
 
 @router.get("/ui/operations/{operation_id}/curves.json")
@@ -236,16 +253,20 @@ def operation_curves_json(request: Request, operation_id: Id, user: Reader):
         op = crud.get_operation(session, operation_id=operation_id) or _not_found(f"operation {operation_id}")
         breaker = crud.breaker_model(crud.get_breaker(session, breaker_id=op.breaker_id))
         fit, path = op.fit, op.capture_path
-        try:
-            cap = read_stored_capture(path, breaker)
-        except CaptureError as exc:
+    # the file is read and the curves computed with the connection back in the pool
+    try:
+        cap = read_stored_capture(path, breaker)
+    except CaptureError as exc:
+        with _session(request) as session:
             cap = _pruned_preview(session, op.id)
-            if cap is None:
-                return security_headers(JSONResponse({"detail": f"the capture file is not readable: {exc}"},
-                                                     status_code=410))
-        body = operation_curves(cap, fit, breaker)
-        if getattr(cap, "note", None):
-            body["note"] = cap.note
+        if cap is None:
+            from service.errors import redact_paths
+
+            return security_headers(JSONResponse({"detail": f"the capture file is not readable: "
+                                                            f"{redact_paths(str(exc))}"}, status_code=410))
+    body = operation_curves(cap, fit, breaker)
+    if getattr(cap, "note", None):
+        body["note"] = cap.note
     body.update(operation_id=operation_id, kind=op.kind, fit_status=fit.status if fit else None)
     return security_headers(JSONResponse(body))
 
@@ -311,7 +332,7 @@ def download_capture(request: Request, operation_id: Id, user: Reader):
 def alarms_page(request: Request, user: Reader, state: Annotated[str, Query(pattern="^(active|all)$")] = "active"):
     with _session(request) as session:
         rows = crud_web.alarms_with_breakers(session, state=state)
-        return page(request, "alarms.html", {"rows": rows, "state": state, "nav": "alarms"})
+    return page(request, "alarms.html", {"rows": rows, "state": state, "nav": "alarms"})
 
 
 @router.post("/alarms/{alarm_id}/ack")
@@ -335,7 +356,8 @@ def acknowledge(request: Request, alarm_id: Id, user: OperatorPost,
 @router.get("/upload")
 def upload_form(request: Request, user: Annotated[WebUser, Depends(auth.require_page("operator"))]):
     with _session(request) as session:
-        return page(request, "upload.html", {"breakers": crud.list_breakers(session), "nav": "upload"})
+        breakers = crud.list_breakers(session)
+    return page(request, "upload.html", {"breakers": breakers, "nav": "upload"})
 
 
 @router.post("/upload")
