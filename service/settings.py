@@ -145,6 +145,8 @@ class ServerSettings(BaseModel):
     body_timeout_s: float = Field(300.0, gt=0, description="a whole body must arrive within this time")
     keepalive_s: int = Field(5, ge=1, le=300, description="an idle kept-alive connection is closed after this")
     max_connections: int = Field(2048, ge=16, description="open connections and requests; beyond: 503")
+    trusted_proxies: str = Field("127.0.0.1", description="addresses whose X-Forwarded-For is believed "
+                                 "(the TLS reverse proxy); comma-separated")
     auth_free_failures: int = Field(5, ge=1, description="wrong keys or sign-ins an address gets before throttling")
     auth_delay_base_s: float = Field(0.5, gt=0, description="first throttling delay; doubles at each failure")
     auth_delay_max_s: float = Field(60.0, gt=0, description="longest throttling delay")
