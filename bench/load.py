@@ -102,7 +102,8 @@ async def run_level(base: str, key: str, cookies: dict, mix: list, n: int, rng: 
     latencies, statuses = [], {}
     worst_health = 0.0
     stop = threading.Event()
-    limits = httpx.Limits(max_connections=n + 8, max_keepalive_connections=n + 8)
+    # idle connections dropped by the client before the server's 5 s keep-alive closes them (no reuse race)
+    limits = httpx.Limits(max_connections=n + 8, max_keepalive_connections=n + 8, keepalive_expiry=2.0)
 
     def health_poller():  # its own thread and connection: the readers' event loop does not delay it
         nonlocal worst_health
