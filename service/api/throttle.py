@@ -1,9 +1,9 @@
 """Throttling of failed credentials (API keys and web sign-ins), per client address.
 
 Each address gets ``free_failures`` wrong credentials for free. After that every further
-failure blocks the address for ``base_s * 2**k`` seconds (k = failures past the free ones,
-capped at ``max_s``): the wrong answer itself is delayed by that time, and any other attempt
-from the address meanwhile is answered 429 with Retry-After. A success from the address, or
+failure costs ``delay = base_s * 2**k`` seconds (k = failures past the free ones, capped at
+``max_s``): the wrong answer itself is held back ``delay``, and the address may not try again
+for ``delay`` more; any attempt from the address before then is answered 429 with Retry-After. A success from the address, or
 ``forget_s`` without failures, clears it. A warning is logged when an address is first
 throttled and at every doubling of its failures.
 
@@ -74,7 +74,7 @@ class AuthThrottle:
             if past <= 0:
                 return 0.0
             delay = min(self.max_s, self.base_s * 2 ** (past - 1))
-            rec.blocked_until = now + delay
+            rec.blocked_until = now + 2 * delay  # held back ``delay``, then ``delay`` more before a new try
             n = rec.failures
         if past == 1 or (n & (n - 1)) == 0:
             log.warning("%d wrong %s from %s: throttled, answers delayed %.1f s", n, what, address, delay)
