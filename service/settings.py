@@ -131,8 +131,8 @@ class ServerSettings(BaseModel):
     client (docs/security.md gives the reasons for each default)."""
 
     model_config = {"extra": "forbid"}
-    threads: int = Field(40, ge=4, le=512, description="threads for request handlers (database pool = threads + 12)")
-    max_active_requests: int = Field(32, ge=1, le=512, description="page and API reads served at once; "
+    threads: int = Field(16, ge=4, le=512, description="threads for request handlers (database pool = threads + 12)")
+    max_active_requests: int = Field(8, ge=1, le=512, description="page and API reads served at once; "
                                      "must leave threads for /healthz, SCADA and key checks")
     max_queued_requests: int = Field(1000, ge=0, le=100_000, description="more reads wait in a queue; "
                                      "beyond it: 503 with Retry-After")
@@ -143,7 +143,8 @@ class ServerSettings(BaseModel):
     header_timeout_s: float = Field(10.0, gt=0, description="a request's headers must arrive within this time")
     body_idle_timeout_s: float = Field(15.0, gt=0, description="longest pause between two pieces of a body")
     body_timeout_s: float = Field(300.0, gt=0, description="a whole body must arrive within this time")
-    keepalive_s: int = Field(5, ge=1, le=300, description="an idle kept-alive connection is closed after this")
+    keepalive_s: int = Field(20, ge=1, le=300, description="an idle kept-alive connection is closed after this "
+                             "(long enough that a busy client does not reuse a connection as it closes)")
     max_connections: int = Field(2048, ge=16, description="open connections and requests; beyond: 503")
     trusted_proxies: str = Field("127.0.0.1", description="addresses whose X-Forwarded-For is believed "
                                  "(the TLS reverse proxy); comma-separated")

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import logging
 import os
+import threading
+import time
 from contextlib import asynccontextmanager
 from pathlib import Path
 
@@ -24,6 +26,9 @@ from .throttle import AuthThrottle
 from .metrics import build_registry, render
 
 log = logging.getLogger("hvcb.api")
+
+HEALTH_REFRESH_S = 0.5   # /healthz answers from a snapshot this fresh...
+HEALTH_MAX_AGE_S = 5.0   # ...and asks the database itself when the snapshot is older than this
 
 
 class NotMigrated(RuntimeError):
@@ -126,9 +131,14 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
                     daq.stop()
                     monitor.stop()
                 raise
+        health_stop = threading.Event()
+        health_thread = threading.Thread(target=_health_loop, args=(app, health_stop), name="hvcb-health", daemon=True)
+        health_thread.start()
         try:
             yield
         finally:
+            health_stop.set()
+            health_thread.join(timeout=10)
             app.state.retention.stop()
             if app.state.iec61850 is not None:
                 app.state.iec61850.stop()
@@ -197,8 +207,21 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
         if key:
             await authorise_key(request, key, "reader")
             detailed = True
-        out = await anyio.to_thread.run_sync(_health, request.app, limiter=request.app.state.priority_limiter)
+        snap = getattr(request.app.state, "health", None)
+        if snap is not None and time.monotonic() - snap[0] <= HEALTH_MAX_AGE_S:
+            out = snap[1]  # answered on the event loop: no thread, no database connection to wait for
+        else:  # the snapshot thread is behind (the database hangs?): ask directly, on the priority threads
+            out = await anyio.to_thread.run_sync(_health, request.app, limiter=request.app.state.priority_limiter)
         return out if detailed else {"status": out["status"]}
+
+    def _health_loop(app, stop: threading.Event) -> None:
+        """Refresh the /healthz snapshot every HEALTH_REFRESH_S on its own thread and connections."""
+        while not stop.is_set():
+            try:
+                app.state.health = (time.monotonic(), _health(app))
+            except Exception:  # the next round tries again; /healthz falls back to asking itself
+                log.warning("health snapshot failed", exc_info=True)
+            stop.wait(HEALTH_REFRESH_S)
 
     def _health(app) -> dict:
         from datetime import timedelta

@@ -364,19 +364,25 @@ def capture_from_upload(blobs: dict[str, bytes], row, operation: str | None, cap
     return Upload(capture, kind, files, name)
 
 
-async def parse_upload(request: Request, blobs: dict[str, bytes], row, operation: str | None,
+async def parse_upload(request: Request, files: list[UploadFile], row, operation: str | None,
                        idempotency_key: str | None = None) -> Upload:
-    """``capture_from_upload`` on a worker thread, at most ``[server] upload_parsers`` at once:
-    the event loop (and /healthz) never waits for a parse, and the memory of parses in flight
-    is bounded (docs/security.md)."""
+    """Read the uploaded files into memory and ``capture_from_upload`` them on a worker thread,
+    at most ``[server] upload_parsers`` uploads at once: the event loop (and /healthz) never
+    waits for a parse, and the memory of uploads in flight is bounded (docs/security.md);
+    uploads waiting their turn stay in the form parser's temporary files."""
     import asyncio
 
     state = request.app.state
+    cap_bytes = state.settings.max_upload_bytes
     if state.upload_slots is None:
         state.upload_slots = asyncio.Semaphore(state.settings.server.upload_parsers)
     async with state.upload_slots:
-        return await run_in_threadpool(capture_from_upload, blobs, row, operation,
-                                       state.settings.max_upload_bytes, idempotency_key)
+        blobs, budget = {}, cap_bytes
+        for f in files:
+            data = await _read_capped(f, budget)
+            budget -= len(data)
+            blobs[(f.filename or "").lower()] = data
+        return await run_in_threadpool(capture_from_upload, blobs, row, operation, cap_bytes, idempotency_key)
 
 
 def ingest_upload(monitor, settings, upload: Upload, *, breaker_id: int, source: str, capture_key: str | None):
@@ -414,8 +420,6 @@ async def upload_capture(breaker_id: BreakerId, request: Request, response: Resp
     stored once however often it is sent: a repeat answers 200 with the existing operation.
     The key is checked from the headers before the body is read, and the body is cut at
     ``max_upload_bytes`` (docs/security.md). The files are stored byte for byte as sent."""
-    cap_bytes = settings.max_upload_bytes
-
     def context():
         with request.app.state.Session() as session:
             return _upload_context(session, breaker_id, idempotency_key)
@@ -424,12 +428,7 @@ async def upload_capture(breaker_id: BreakerId, request: Request, response: Resp
     if dup is not None:
         response.status_code = 200
         return dup
-    blobs, budget = {}, cap_bytes
-    for f in files:
-        data = await _read_capped(f, budget)
-        budget -= len(data)
-        blobs[(f.filename or "").lower()] = data
-    upload = await parse_upload(request, blobs, row, operation, idempotency_key)
+    upload = await parse_upload(request, files, row, operation, idempotency_key)
     source = "agent" if who.role == "agent" else "upload"
     result = await run_in_threadpool(ingest_upload, monitor, settings, upload, breaker_id=breaker_id, source=source,
                                      capture_key=idempotency_key)

@@ -4,7 +4,8 @@ uvicorn closes idle kept-alive connections (``timeout_keep_alive``) but has no l
 long a client may take to send a request's headers: a client trickling one header byte at a
 time holds its connection for ever. ``HeaderTimeoutH11Protocol`` adds that limit: a connection
 whose request headers are not complete ``[server] header_timeout_s`` after it opened (or after
-the previous response) is closed. Body read timeouts are in the request guard
+the first byte of a later request on a kept-alive connection) is closed; an idle kept-alive
+connection is closed after ``keepalive_s`` by uvicorn itself. Body read timeouts are in the request guard
 (service/api/guard.py). docs/security.md lists every limit.
 """
 
@@ -44,11 +45,8 @@ def header_timeout_protocol(header_timeout_s: float):
             super().data_received(data)
             if self.conn.their_state is not h11.IDLE:  # the request line and headers are in
                 self._disarm()
-
-        def on_response_complete(self) -> None:
-            super().on_response_complete()
-            if not self.transport.is_closing():
-                self._arm()  # the next request on this connection gets the same time
+            elif self._header_timer is None and not self.transport.is_closing():
+                self._arm()  # a later request on a kept-alive connection has begun: same limit
 
         def connection_lost(self, exc) -> None:
             self._disarm()

@@ -365,10 +365,9 @@ async def upload(request: Request, user: OperatorPost,
                  breaker_id: Annotated[int, Form(ge=1, le=MAX_ID)],
                  files: Annotated[list[UploadFile], File()],
                  operation: Annotated[str, Form(pattern="^(auto|open|close)$")] = "auto"):
-    from service.api.routes import _read_capped, ingest_upload, parse_upload
+    from service.api.routes import ingest_upload, parse_upload
 
     settings = request.app.state.settings
-    cap_bytes = settings.max_upload_bytes
 
     def form_error(message: str, status: int):
         with _session(request) as session:
@@ -384,12 +383,7 @@ async def upload(request: Request, user: OperatorPost,
         row = await run_in_threadpool(breaker_row)
         if row is None:
             return await run_in_threadpool(form_error, f"there is no breaker {breaker_id}", 422)
-        blobs, budget = {}, cap_bytes
-        for f in files:
-            data = await _read_capped(f, budget)
-            budget -= len(data)
-            blobs[(f.filename or "").lower()] = data
-        upload = await parse_upload(request, blobs, row, None if operation == "auto" else operation)
+        upload = await parse_upload(request, files, row, None if operation == "auto" else operation)
     except HTTPException as exc:
         return await run_in_threadpool(form_error, str(exc.detail), exc.status_code)
     result = await run_in_threadpool(ingest_upload, request.app.state.monitor, settings, upload,
