@@ -120,9 +120,11 @@ class RequestGuard:
         if declared is not None and declared.strip().isdigit() and int(declared) > limit:
             return await _answer(send, 413, f"request body of {int(declared)} bytes is larger than the "
                                             f"{limit - (MULTIPART_SLACK if upload else 0)} byte limit")
-        state = {"read": 0, "aborted": False, "started": time.monotonic()}
+        state = {"read": 0, "aborted": False, "started": time.monotonic(), "complete": False}
 
         async def guarded_receive():
+            if state["complete"]:  # the body is in; later calls wait for a disconnect, untimed
+                return await receive()
             try:
                 message = await asyncio.wait_for(receive(), srv.body_idle_timeout_s)
             except TimeoutError:
@@ -134,6 +136,7 @@ class RequestGuard:
                     state["aborted"] = True
                     raise BodyLimit(413, f"request body larger than the "
                                          f"{limit - (MULTIPART_SLACK if upload else 0)} byte limit")
+                state["complete"] = not message.get("more_body", False)
                 if message.get("more_body") and time.monotonic() - state["started"] > srv.body_timeout_s:
                     state["aborted"] = True
                     raise BodyLimit(408, f"the request body took longer than {srv.body_timeout_s:g} s")
