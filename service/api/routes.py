@@ -2,11 +2,8 @@
 
 from __future__ import annotations
 
-import tempfile
 import time
-import tomllib
 from datetime import datetime, timedelta, timezone
-from pathlib import Path
 from typing import Annotated, Literal
 
 import numpy as np
@@ -16,7 +13,8 @@ from fastapi.responses import Response
 from sqlalchemy.exc import IntegrityError
 
 from drivers.capture import CaptureError
-from service.jobs.upload import UploadRefused, capture_from_upload, read_capped
+from service.errors import redact_paths
+from service.jobs.upload import UploadRefused, ingest_upload, parse_upload
 from service.storage import crud
 from service.storage.fit_curve import fit_curve
 from service.storage.models import BreakerRow, utcnow
@@ -68,17 +66,15 @@ def get_breaker(breaker_id: BreakerId, session: SessionDep, _: ReaderDep):
 @router.post("/breakers", response_model=s.BreakerPublic, status_code=201, responses={**AUTH, 409: {"model": s.Message},
              422: {"model": s.Message}}, tags=["breakers"])
 def create_breaker(body: s.BreakerCreate, session: SessionDep, _: AdminDep):
-    from service.breaker_file import load_breaker
+    from service.breaker_file import BreakerFileError, breaker_from_text, parse_breaker_text
 
     try:
-        data = tomllib.loads(body.breaker_file)
-        cam_name = Path(str(data["cam"]["profile"])).name
-        with tempfile.TemporaryDirectory() as tmp:
-            (Path(tmp) / cam_name).write_text(body.cam_table)
-            (Path(tmp) / "breaker.toml").write_text(body.breaker_file.replace(str(data["cam"]["profile"]), cam_name))
-            breaker = load_breaker(Path(tmp) / "breaker.toml")
-    except (tomllib.TOMLDecodeError, KeyError, TypeError, ValueError, OSError) as exc:
+        breaker = breaker_from_text(body.breaker_file, body.cam_table, source="(sent)")
+        cam_name = parse_breaker_text(body.breaker_file, source="(sent)").cam.profile
+    except BreakerFileError as exc:
         raise HTTPException(422, f"invalid breaker file: {exc}") from None
+    if parse_breaker_text(body.breaker_file, source="(sent)").name is None:
+        raise HTTPException(422, "invalid breaker file: give the breaker a `name`")
     if crud.get_breaker_by_name(session, name=breaker.name) is not None:
         raise HTTPException(409, f"a breaker named {breaker.name!r} exists")
     try:
@@ -145,9 +141,12 @@ def breaker_health(breaker_id: BreakerId, session: SessionDep, settings: Setting
 def parameter_trend(breaker_id: BreakerId, session: SessionDep, _: ReaderDep,
                     name: Annotated[s.ParameterName, Query(description="parameter, e.g. DO")],
                     since: Annotated[datetime | None, Query(description="ISO-8601; UTC when no zone")] = None,
-                    limit: Annotated[int, Query(ge=1, le=20000)] = 5000):
+                    limit: Annotated[int, Query(ge=1, le=20000)] = 5000,
+                    include_clock_suspect: Annotated[bool, Query(
+                        description="also values of clock-suspect operations (left out by default)")] = False):
     _breaker_or_404(session, breaker_id)
-    rows = crud.parameter_trend(session, breaker_id=breaker_id, name=name, since=_utc(since), limit=limit)
+    rows = crud.parameter_trend(session, breaker_id=breaker_id, name=name, since=_utc(since), limit=limit,
+                                clock_suspect=None if include_clock_suspect else False)
     points = [s.TrendPoint(time=r.occurred_at, value=r.value, operation_id=r.operation_id, identifiable=r.identifiable,
                            ci95=[r.ci_low, r.ci_high] if r.ci_low is not None and r.ci_high is not None else None)
               for r in rows]
@@ -157,9 +156,11 @@ def parameter_trend(breaker_id: BreakerId, session: SessionDep, _: ReaderDep,
 @router.get("/breakers/{breaker_id}/operations", response_model=list[s.OperationPublic],
             responses={**AUTH, **NOT_FOUND}, tags=["operations"])
 def list_operations(breaker_id: BreakerId, session: SessionDep, _: ReaderDep,
-                    limit: Annotated[int, Query(ge=1, le=1000)] = 50):
+                    limit: Annotated[int, Query(ge=1, le=1000)] = 50,
+                    clock_suspect: Annotated[bool | None, Query(
+                        description="true: only clock-suspect operations; false: none of them; omitted: all")] = None):
     _breaker_or_404(session, breaker_id)
-    return crud.list_operations(session, breaker_id=breaker_id, limit=limit)
+    return crud.list_operations(session, breaker_id=breaker_id, limit=limit, clock_suspect=clock_suspect)
 
 
 @router.get("/operations/{operation_id}", response_model=s.OperationPublic, responses={**AUTH, **NOT_FOUND},
@@ -205,19 +206,21 @@ def get_diagnosis(operation_id: OperationId, request: Request, response: Respons
             responses={**AUTH, **NOT_FOUND, 410: {"model": s.Message}}, tags=["operations"])
 def get_curve(operation_id: OperationId, session: SessionDep, _: ReaderDep,
               points: Annotated[int, Query(ge=10, le=5000, description="samples returned")] = 1000):
-    from service.acquisition.capture_file import read_capture
+    from service.acquisition.capture_file import read_stored_capture
 
     op = crud.get_operation(session, operation_id=operation_id)
     if op is None:
         raise HTTPException(404, f"no operation {operation_id}")
+    breaker = crud.breaker_model(crud.get_breaker(session, breaker_id=op.breaker_id))
+    fit = op.fit
+    session.close()  # the file is read and the answer built without holding a connection
     try:
-        cap = read_capture(op.capture_path)
+        cap = read_stored_capture(op.capture_path, breaker)
     except CaptureError as exc:
-        raise HTTPException(410, f"the capture file is no longer readable: {exc}") from None
+        raise HTTPException(410, f"the capture file is no longer readable: {redact_paths(str(exc))}") from None
     idx = np.unique(np.linspace(0, cap.travel.size - 1, min(points, cap.travel.size)).astype(int))
     t, measured = cap.t[idx], cap.travel[idx]
     fitted = residual = window = None
-    fit = op.fit
     curve = fit_curve(fit, cap.t, crud.breaker_model(session.get(BreakerRow, op.breaker_id))) if fit is not None else None
     if curve is not None:
         ft, fv = curve
@@ -233,7 +236,7 @@ def get_curve(operation_id: OperationId, session: SessionDep, _: ReaderDep,
 
 
 # -- uploads -----------------------------------------------------------------------------------
-def _duplicate(session, breaker_id: int, key: str, response: Response) -> s.UploadAccepted | None:
+def _duplicate(session, breaker_id: int, key: str) -> s.UploadAccepted | None:
     """The operation already stored under this idempotency key, or None."""
     op = crud.get_operation_by_key(session, capture_key=key)
     if op is None:
@@ -241,8 +244,13 @@ def _duplicate(session, breaker_id: int, key: str, response: Response) -> s.Uplo
     if op.breaker_id != breaker_id:
         raise HTTPException(409, f"this capture (Idempotency-Key {key[:12]}...) is stored under breaker "
                                  f"{op.breaker_id}, not {breaker_id}")
-    response.status_code = 200
     return s.UploadAccepted(operation_id=op.id, capture_key=key, operation=op.kind, status="duplicate")
+
+
+def _upload_context(session, breaker_id: int, idempotency_key: str | None):
+    row = _breaker_or_404(session, breaker_id)
+    dup = _duplicate(session, breaker_id, idempotency_key, ) if idempotency_key is not None else None
+    return row, dup
 
 
 @router.post("/breakers/{breaker_id}/captures", response_model=s.UploadAccepted, status_code=202,
@@ -250,7 +258,7 @@ def _duplicate(session, breaker_id: int, key: str, response: Response) -> s.Uplo
                                                    "description": "stored before under this Idempotency-Key"},
                         409: {"model": s.Message}, 413: {"model": s.Message}, 422: {"model": s.Message}},
              tags=["operations"])
-async def upload_capture(breaker_id: BreakerId, request: Request, response: Response, session: SessionDep,
+async def upload_capture(breaker_id: BreakerId, request: Request, response: Response,
                          settings: SettingsDep, monitor: MonitorDep, who: UploaderDep,
                          files: Annotated[list[UploadFile], File(description="a .cfg and its .dat, one .cff, or one .zip")],
                          operation: Annotated[Literal["open", "close"] | None,
@@ -260,30 +268,25 @@ async def upload_capture(breaker_id: BreakerId, request: Request, response: Resp
                              description="the capture's content hash (SHA-256 of the hex SHA-256 of the .cfg "
                                          "then the .dat): a retry answers with the stored operation")] = None):
     """Upload one capture (operator, admin or agent key). With ``Idempotency-Key`` a capture is
-    stored once however often it is sent: a repeat answers 200 with the existing operation."""
-    cap_bytes = settings.max_upload_bytes
-    declared = request.headers.get("content-length")
-    if declared and declared.isdigit() and int(declared) > cap_bytes + 64 * 1024:
-        raise HTTPException(413, f"upload larger than the {cap_bytes} byte limit")
-    row = _breaker_or_404(session, breaker_id)
-    if idempotency_key is not None:
-        dup = _duplicate(session, breaker_id, idempotency_key, response)
-        if dup is not None:
-            return dup
-    blobs, budget = {}, cap_bytes
+    stored once however often it is sent: a repeat answers 200 with the existing operation.
+    The key is checked from the headers before the body is read, and the body is cut at
+    ``max_upload_bytes`` (docs/security.md). The files are stored byte for byte as sent."""
+    def context():
+        with request.app.state.Session() as session:
+            return _upload_context(session, breaker_id, idempotency_key)
+
+    row, dup = await run_in_threadpool(context)
+    if dup is not None:
+        response.status_code = 200
+        return dup
     try:
-        for f in files:
-            data = await read_capped(f, budget)
-            budget -= len(data)
-            blobs[(f.filename or "").lower()] = data
-        capture, kind = capture_from_upload(blobs, row, operation, cap_bytes, idempotency_key=idempotency_key)
+        upload = await parse_upload(request.app.state, files, row, operation, idempotency_key)
     except UploadRefused as exc:
         raise HTTPException(exc.status_code, exc.detail) from None
-    session.close()
     source = "agent" if who.role == "agent" else "upload"
-    result = await run_in_threadpool(monitor.ingest, capture, breaker_id=breaker_id, operation=kind, source=source,
+    result = await run_in_threadpool(ingest_upload, monitor, settings, upload, breaker_id=breaker_id, source=source,
                                      capture_key=idempotency_key)
-    return s.UploadAccepted(operation_id=result.operation_id, capture_key=result.capture_key, operation=kind,
+    return s.UploadAccepted(operation_id=result.operation_id, capture_key=result.capture_key, operation=upload.kind,
                             status="spooled" if result.spooled else "queued")
 
 

@@ -149,7 +149,7 @@ def _accepts_prior(fit_function) -> bool:
 def _fit(capture_path: str, expected_sha: str, breaker, kind: str, dc, options: JobOptions,
          prior=None):
     from drivers.capture import CaptureError
-    from service.acquisition.capture_file import read_capture
+    from service.acquisition.capture_file import read_stored_capture
 
     files = capture_files(capture_path)
     missing = [str(p) for p in files if not p.exists()]
@@ -158,8 +158,7 @@ def _fit(capture_path: str, expected_sha: str, breaker, kind: str, dc, options: 
     if capture_digest(files) != expected_sha:
         raise CaptureError("capture file checksum does not match the one recorded at capture time "
                            "(file changed or corrupted on disk)")
-    capture = read_capture(capture_path, travel_channel=breaker.channels.get("travel", "travel"),
-                           vibration_channel=breaker.channels.get("vibration", "vibration"))
+    capture = read_stored_capture(capture_path, breaker)
     fit_capture = _resolve(options.fit_function)
     extra = {"prior": prior} if prior is not None and _accepts_prior(fit_capture) else {}
     result = fit_capture(capture, breaker, kind, dc=dc, seed=options.fit_seed, **extra)

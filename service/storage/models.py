@@ -5,7 +5,7 @@ from __future__ import annotations
 from datetime import datetime, timezone
 
 from sqlalchemy import (JSON, BigInteger, Boolean, DateTime, Float, ForeignKey, Index, Integer, String, Text,
-                        TypeDecorator, UniqueConstraint)
+                        TypeDecorator, UniqueConstraint, false)
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 
 
@@ -76,6 +76,9 @@ class OperationRow(Base):
     flags: Mapped[list] = mapped_column(default=list)
     sample_rate: Mapped[float] = mapped_column(Float)
     n_samples: Mapped[int] = mapped_column(Integer)
+    # dated more than [clock_tolerance_s] after it arrived: kept and shown, but never "latest",
+    # never on SCADA and never in the drift baseline (migration 0006)
+    clock_suspect: Mapped[bool] = mapped_column(Boolean, default=False, server_default=false(), index=True)
     fit: Mapped[FitRow | None] = relationship(back_populates="operation", uselist=False, lazy="selectin")
 
     __table_args__ = (Index("ix_operations_breaker_time", "breaker_id", "occurred_at"),)

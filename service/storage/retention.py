@@ -193,11 +193,10 @@ def capture_preview(t, travel, vibration=None, *, sample_rate: float, buckets: i
 
 def _preview_from_file(path: str, breaker, buckets: int) -> dict:
     from drivers.capture import CaptureError
-    from service.acquisition.capture_file import read_capture
+    from service.acquisition.capture_file import read_stored_capture
 
     try:
-        cap = read_capture(path, travel_channel=breaker.channels.get("travel", "travel"),
-                           vibration_channel=breaker.channels.get("vibration", "vibration"))
+        cap = read_stored_capture(path, breaker)
     except (CaptureError, OSError, ValueError) as exc:
         return {"t": [], "travel": [], "vibration": None, "unreadable": str(exc)}
     return capture_preview(cap.t, cap.travel, cap.vibration, sample_rate=cap.sample_rate, buckets=buckets)

@@ -110,3 +110,21 @@ class Spool:
 
 def utc_text(t: datetime) -> str:
     return t.astimezone(timezone.utc).isoformat().replace("+00:00", "Z")
+
+
+def write_capture_bytes(files: dict[str, bytes], directory: Path, key: str) -> Path:
+    """Store an uploaded capture byte for byte: ``files`` maps a suffix (".cfg", ".dat" or
+    ".cff") to its bytes. Each file is written under a temporary name, fsynced and renamed, then
+    the folder is fsynced. Returns the main file (the .cfg or the .cff)."""
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    for suffix, data in files.items():
+        final = directory / f"{key}{suffix}"
+        tmp = directory / f".{key}{suffix}.tmp"
+        with open(tmp, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, final)
+    _fsync_dir(directory)
+    return directory / f"{key}{'.cff' if '.cff' in files else '.cfg'}"

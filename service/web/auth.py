@@ -152,6 +152,20 @@ def sign_out(request: Request, user: WebUser) -> None:
         crud_web.end_web_session(session, token_hash=token_hash(user.token))
 
 
+def end_presented_session(request: Request) -> bool:
+    """End the session whose cookie this request carries, if it is a valid one (sign-in rotates
+    the session: an old cookie, perhaps seen by someone else, stops working). True if one ended."""
+    cookie = request.cookies.get(COOKIE)
+    if not cookie:
+        return False
+    try:
+        token = signer(request).unsign(cookie)
+    except WebAuthError:
+        return False
+    with request.app.state.Session() as session, session.begin():
+        return crud_web.end_web_session(session, token_hash=token_hash(token))
+
+
 def current_user(request: Request) -> WebUser:
     """The signed-in user of this request; raises WebAuthError."""
     cookie = request.cookies.get(COOKIE)

@@ -63,6 +63,9 @@ def db_url(request, tmp_path):
 
 def make_settings(tmp_path, db_url, **kw):
     kw.setdefault("executor", "inline")
+    # the route matrices send many wrong keys from one test client; throttling (D7) has its own
+    # tests in tests/security/test_d07_throttle.py
+    kw.setdefault("server", {"auth_free_failures": 100_000})
     return load_settings(data_dir=tmp_path / "data", database_url=db_url, broker_url="",
                          bootstrap_admin_key=None, **kw)
 
