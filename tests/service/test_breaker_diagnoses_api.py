@@ -221,7 +221,9 @@ def sqlite_svc(tmp_path, breaker):
     url = f"sqlite:///{tmp_path / 'data' / 'hvcb.sqlite3'}"
     (tmp_path / "data").mkdir()
     upgrade(url)
-    app = create_app(make_settings(tmp_path, url, fit_function="fleet_helpers:no_fit"), on_key=(shown := []).append)
+    # the local process pool, as `hvcb serve` runs it by default
+    app = create_app(make_settings(tmp_path, url, executor="local", fit_function="fleet_helpers:no_fit"),
+                     on_key=(shown := []).append)
     with TestClient(app) as client:
         with app.state.Session() as s, s.begin():
             reader = crud.create_api_key(s, name="test-reader", role="reader")[1]
@@ -231,8 +233,8 @@ def sqlite_svc(tmp_path, breaker):
 
 
 def test_the_real_diagnosis_runs_on_two_stored_captures(sqlite_svc, samples_dir):
-    """Not a claim of accuracy: the real diagnose runs through the pool on real stored files and
-    its answer is stored and served whole."""
+    """Not a claim of accuracy: the real diagnose runs in the local process pool on real stored
+    files and its answer is stored and served whole."""
     svc = sqlite_svc
     for name in ("open-nominal", "open-nominal-ascii"):
         files = [("files", (f"{name}{ext}", (samples_dir / f"{name}{ext}").read_bytes())) for ext in (".cfg", ".dat")]
