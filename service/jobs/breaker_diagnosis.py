@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import logging
+import threading
 
 from service.errors import UserError
 from service.storage import crud, crud_diagnoses
@@ -33,6 +34,11 @@ PER_KEY_BOUND = {"reader": 2, "operator": 5, "admin": 10}
 ROLE_BOUND = {"reader": 4}
 # Retry-After: about one diagnosis of 10 captures (the 60 s target).
 RETRY_AFTER_S = 60
+
+
+# Count-then-insert under one lock, so concurrent requests of one API process cannot both pass
+# the bound (several API processes on one database may still overshoot it by one each).
+_BOUND_LOCK = threading.Lock()
 
 
 class QueueFull(UserError):
@@ -71,15 +77,18 @@ def queue_diagnosis(session, *, breaker: BreakerRow, kind: str, last: int, who) 
     if existing is not None:
         return existing, False
     role = who.role if who.role in PER_KEY_BOUND else "reader"
-    mine, theirs = crud_diagnoses.pending_counts(session, key_id=who.key_id, role=role)
-    if mine >= PER_KEY_BOUND[role]:
-        raise QueueFull(f"you already have {mine} breaker diagnoses queued or running, the most a {role} key may "
-                        f"have at once ({PER_KEY_BOUND[role]}); ask again when one has finished")
-    if role in ROLE_BOUND and theirs >= ROLE_BOUND[role]:
-        raise QueueFull(f"{theirs} breaker diagnoses asked by {role} keys are queued or running, the most "
-                        f"{role}s may have together ({ROLE_BOUND[role]}); ask again when one has finished")
-    return crud_diagnoses.insert(session, breaker_id=breaker.id, kind=kind, last=last, operation_ids=ids,
-                                 skipped=skipped, key=key, requested_by=who.name, key_id=who.key_id, role=role)
+    with _BOUND_LOCK:
+        session.rollback()  # count what is committed now, not what this session saw before the lock
+        mine, theirs = crud_diagnoses.pending_counts(session, key_id=who.key_id, role=role)
+        if mine >= PER_KEY_BOUND[role]:
+            raise QueueFull(f"you already have {mine} breaker diagnoses queued or running, the most a {role} key "
+                            f"may have at once ({PER_KEY_BOUND[role]}); ask again when one has finished")
+        if role in ROLE_BOUND and theirs >= ROLE_BOUND[role]:
+            raise QueueFull(f"{theirs} breaker diagnoses asked by {role} keys are queued or running, the most "
+                            f"{role}s may have together ({ROLE_BOUND[role]}); ask again when one has finished")
+        return crud_diagnoses.insert(session, breaker_id=breaker.id, kind=kind, last=last, operation_ids=ids,
+                                     skipped=skipped, key=key, requested_by=who.name, key_id=who.key_id,
+                                     role=role)
 
 
 def _reasons(skipped: list[dict]) -> str:

@@ -113,3 +113,15 @@ def test_readers_are_bounded_with_429_and_identical_requests_reuse(svc, held):
         time.sleep(0.1)
     assert held.runs == 5
     assert ask(client, keys, "r1", 4).status_code == 202
+
+
+def test_concurrent_requests_of_one_reader_do_not_pass_the_bound_together(svc, held):
+    client, keys = svc
+    answers: list[int] = []
+    threads = [threading.Thread(target=lambda n=n: answers.append(ask(client, keys, "r1", n).status_code))
+               for n in range(2, 8)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(timeout=60)
+    assert sorted(answers) == [202, 202, 429, 429, 429, 429]

@@ -65,6 +65,15 @@ class App:
             ids.append(res.operation_id)
         return ids
 
+    def wait_fits(self, timeout: float = 60.0) -> None:
+        deadline = time.monotonic() + timeout
+        while True:
+            with self.app.state.Session() as s:
+                if crud.queue_depth(s) == 0:
+                    return
+            assert time.monotonic() < deadline, "fits still pending"
+            time.sleep(0.05)
+
     def wait(self, url: str, timeout: float = 60.0) -> dict:
         deadline = time.monotonic() + timeout
         while True:
@@ -252,3 +261,22 @@ def test_the_real_diagnosis_runs_on_two_stored_captures(sqlite_svc, samples_dir)
     with svc.app.state.Session() as s:
         assert s.scalar(select(BreakerDiagnosisRow.result).where(BreakerDiagnosisRow.id == out["id"]))["operation"] \
             == "open"
+
+
+def test_identical_inserts_race_to_one_row_and_pending_captures_are_kept(svc, fake):
+    """Two identical requests that both passed the lookup: the unique selection key lets one row
+    in and hands the other the winner. While it is pending, retention keeps its captures."""
+    from service.storage import crud_diagnoses
+    from service.storage.retention import protected_operations
+
+    opens = svc.store("open", 2)
+    svc.wait_fits()  # (a pending fit protects them too)
+    key = crud_diagnoses.selection_key(breaker_id=1, kind="open", operation_ids=opens)
+    args = dict(breaker_id=1, kind="open", last=2, operation_ids=opens, skipped=[], key=key, requested_by="t",
+                key_id=None, role="reader")
+    with svc.app.state.Session() as s1, svc.app.state.Session() as s2:
+        first, created1 = crud_diagnoses.insert(s1, **args)
+        second, created2 = crud_diagnoses.insert(s2, **args)
+        assert created1 and not created2 and second.id == first.id
+        assert {i: why for i, why in protected_operations(s1).items() if i in opens} == \
+            {i: "breaker diagnosis pending" for i in opens}
