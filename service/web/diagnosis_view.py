@@ -110,7 +110,10 @@ def view(r: dict | None) -> dict | None:
     where = _where(r)
     messages = [str(r["message"])] if r.get("message") else []
     messages += [str(w) for w in r.get("warnings") or [] if isinstance(w, str)]
+    mild = [str(m) for m in r.get("mild") or [] if isinstance(m, str)] if isinstance(r.get("mild"), list) else []
     return {"status": status, "effects": [str(e) for e in effects], "probabilities": probabilities,
+            "answer": str(r["answer"]) if r.get("answer") else None,
+            "answer_probability": _num(r.get("answer_probability")), "mild": mild,
             "rivals": rivals, "absorbed": absorbed, "far": far, "where": where, "bars": _bars(where),
             "params": _params(reduced, corrected), "next": nxt, "messages": messages,
             "captures": len(r["captures"]) if isinstance(r.get("captures"), list) else None}

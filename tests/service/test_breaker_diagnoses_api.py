@@ -22,6 +22,12 @@ NAME = "reference-252kV"
 URL = f"/api/v1/breakers/{NAME}/diagnoses"
 
 
+def n_captures(result: dict) -> int:
+    """The result's ``captures``: a count in the issue-20 shape, a list per capture before it."""
+    c = result["captures"]
+    return c if isinstance(c, int) else len(c)
+
+
 class FakeDiagnose:
     """Records what it was given and answers in the shape of the real result. ``gate`` holds a
     job running until the test releases it."""
@@ -255,7 +261,7 @@ def test_the_real_diagnosis_runs_on_two_stored_captures(sqlite_svc, samples_dir)
     out = svc.wait(r.headers["Location"], timeout=240)
     assert out["status"] == "done", out["failure_reason"]
     result = out["result"]
-    assert result["operation"] == "open" and len(result["captures"]) == 2
+    assert result["operation"] == "open" and n_captures(result) == 2
     assert result["status"] in ("none", "named", "ambiguous", "unexplained", "explained", "partly_explained")
     assert result["gap"] and out["diagnosis_status"] == result["status"]
     with svc.app.state.Session() as s:

@@ -24,6 +24,7 @@ RESULT = {
     "next_measurement": [{"measurement": "10 openings below 0 °C", "expected_delta_bic": -14.2,
                           "separates": ["viscous_friction", "orifice_buffer"]}],
     "message": "two effects at once",
+    "answer": "orifice_buffer+viscous_friction", "answer_probability": 0.9, "mild": ["sensor_nonlinearity"],
 }
 
 
@@ -62,6 +63,8 @@ def test_template_draws_every_part_escaped():
     assert "10 openings below 0 °C" in html and "-14.2" in html
     assert "Rivals: sensor_nonlinearity (0.050)" in html
     assert "puffer_gas" in html and "two effects at once" in html
+    assert "orifice_buffer+viscous_friction</strong>, probability 0.90" in html
+    assert "Present but mild: sensor_nonlinearity" in html
     assert 'id="bdiag-before">3.000<' in html and 'id="bdiag-after">1.600<' in html
     assert "<th>corrected</th>" in html and "bdiag-no-correction" not in html
     assert 'name="csrf_token" value="tok"' in html
