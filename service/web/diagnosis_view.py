@@ -53,25 +53,39 @@ def _bars(where: list[dict]) -> dict:
 
 
 def _params(reduced, corrected) -> dict:
-    """{"columns": [...], "rows": [[name, value, ...]]} from {name: value}, or a list of such per
-    capture (one column each)."""
+    """Per parameter: the reduced fit and the corrected value, each the mean over the captures
+    (with the captures' range), and the correction in %. From {name: value}, or a list of such
+    per capture. Corrected values equal to the reduced ones (nothing named) are not repeated."""
     def as_list(x):
         if isinstance(x, dict) and x and all(isinstance(v, dict) for v in x.values()):
             return list(x.values())
         if isinstance(x, dict):
-            return [x]
+            return [x] if x else []
         if isinstance(x, list):
             return [d for d in x if isinstance(d, dict)]
         return []
 
+    def stats(ds, name):
+        vals = [v for v in (_num(d.get(name)) for d in ds) if v is not None]
+        if not vals:
+            return None, None, None
+        return sum(vals) / len(vals), min(vals), max(vals)
+
     red, cor = as_list(reduced), as_list(corrected)
-    columns = ([f"reduced fit{f' #{i + 1}' if len(red) > 1 else ''}" for i in range(len(red))]
-               + [f"corrected{f' #{i + 1}' if len(cor) > 1 else ''}" for i in range(len(cor))])
+    if cor and red and len(cor) == len(red) and all(
+            all(_num(c.get(k)) == _num(r.get(k)) for k in set(c) | set(r)) for c, r in zip(cor, red)):
+        cor = []
     names: list[str] = []
     for d in red + cor:
         names += [k for k in d if k not in names]
-    rows = [[n] + [_num(d.get(n)) for d in red + cor] for n in names]
-    return {"columns": columns, "rows": rows, "corrected": bool(cor and any(cor))}
+    rows = []
+    for n in names:
+        rm, rlo, rhi = stats(red, n)
+        cm, _, _ = stats(cor, n)
+        change = (cm - rm) / abs(rm) if cm is not None and rm not in (None, 0.0) else None
+        rows.append({"name": n, "reduced": rm, "lo": rlo if len(red) > 1 else None,
+                     "hi": rhi if len(red) > 1 else None, "corrected": cm, "change": change})
+    return {"rows": rows, "corrected": bool(cor), "n": len(red)}
 
 
 def view(r: dict | None) -> dict | None:

@@ -36,10 +36,24 @@ def test_view_reads_the_issue_20_shape():
     # the longest bar (4× noise) is the full width; the noise floor sits at a quarter of it
     assert v["where"][1]["before_px"] == 250.0 and v["bars"]["noise_px"] == 62.5
     assert v["where"][1]["after_px"] == round(1.1 * 62.5, 1)
-    assert v["params"]["columns"] == ["reduced fit", "corrected"] and v["params"]["corrected"]
-    assert v["params"]["rows"] == [["AO", 3400.0, 3420.0], ["DO", 41.0, 39.5]]
+    assert v["params"]["corrected"] and v["params"]["n"] == 1
+    ao, do = v["params"]["rows"]
+    assert (ao["name"], ao["reduced"], ao["corrected"]) == ("AO", 3400.0, 3420.0) and ao["lo"] is None
+    assert abs(do["change"] - (39.5 - 41.0) / 41.0) < 1e-12
     assert v["next"][0]["separates"] == ["viscous_friction", "orifice_buffer"]
     assert v["absorbed"] == [{"effect": "puffer_gas", "bias": {"DO": 0.021}}]
+
+
+def test_parameters_of_several_captures_are_summarised_and_an_unchanged_correction_is_dropped():
+    reduced = [{"AO": 3400.0, "DO": 40.0}, {"AO": 3420.0, "DO": 42.0}]
+    v = view({"status": "none", "reduced_parameters": reduced, "corrected_parameters": [dict(d) for d in reduced]})
+    ao = v["params"]["rows"][0]
+    assert (ao["reduced"], ao["lo"], ao["hi"]) == (3410.0, 3400.0, 3420.0)
+    assert not v["params"]["corrected"] and ao["corrected"] is None
+    v = view({"status": "named", "reduced_parameters": reduced,
+              "corrected_parameters": [{"AO": 3300.0, "DO": 40.0}, {"AO": 3320.0, "DO": 42.0}]})
+    ao = v["params"]["rows"][0]
+    assert v["params"]["corrected"] and ao["corrected"] == 3310.0 and abs(ao["change"] + 100 / 3410) < 1e-12
 
 
 def test_view_takes_what_is_there():
@@ -66,5 +80,6 @@ def test_template_draws_every_part_escaped():
     assert "orifice_buffer+viscous_friction</strong>, probability 0.90" in html
     assert "Present but mild: sensor_nonlinearity" in html
     assert 'id="bdiag-before">3.000<' in html and 'id="bdiag-after">1.600<' in html
-    assert "<th>corrected</th>" in html and "bdiag-no-correction" not in html
+    assert "<th>Corrected</th>" in html and "bdiag-no-correction" not in html
+    assert "-3.7 %" in html  # DO 41.0 -> 39.5
     assert 'name="csrf_token" value="tok"' in html
