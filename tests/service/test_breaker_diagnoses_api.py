@@ -62,8 +62,6 @@ class App:
 
     def store(self, kind: str, n: int, start: int = 0) -> list[int]:
         """n synthetic operations of ``kind``, 10 minutes apart, stored as the monitor stores them."""
-        from conftest import BREAKER_FILE  # noqa: F401  (the breaker the captures are made for)
-
         ids = []
         for i in range(start, start + n):
             cap = synth(self.breaker, kind, seed=500 + i, start_time=T0 + timedelta(minutes=10 * i))
