@@ -69,6 +69,7 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
     called with a newly generated admin key (the commands print it)."""
     from service.jobs.ingest import Monitor
     from service.workers import make_executor
+    from service.workers.breaker_diagnoses import BreakerDiagnosisRunner
     from service.workers.diagnoses import DiagnosisRunner
 
     from .daq import ServiceDaqs
@@ -96,6 +97,7 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
         daq = ServiceDaqs(settings, Session, monitor)
         app.state.engine, app.state.Session, app.state.monitor, app.state.daq = engine, Session, monitor, daq
         app.state.diagnoses = DiagnosisRunner(settings.sqlalchemy_url)
+        app.state.breaker_diagnoses = BreakerDiagnosisRunner(settings)
         if start_monitor:
             monitor.start()
             try:
@@ -133,6 +135,7 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
             if app.state.iec61850 is not None:
                 app.state.iec61850.stop()
             app.state.diagnoses.shutdown()
+            app.state.breaker_diagnoses.shutdown()
             if start_monitor:
                 daq.stop()
                 monitor.stop()
@@ -154,6 +157,10 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
     from .routes import router
 
     app.include_router(router)
+
+    from .routes_diagnoses import router as diagnoses_router  # breaker-level diagnoses (issue 20)
+
+    app.include_router(diagnoses_router)
 
     from service.web import mount_web  # the engineers' web page at /
 

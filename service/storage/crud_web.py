@@ -155,8 +155,12 @@ def change_marker(session: Session) -> str:
     alarms = session.execute(select(func.count(), func.max(AlarmRow.updated_at))).one()
     diag = session.execute(select(func.count(), func.max(DiagnosisRow.finished_at))
                            .where(DiagnosisRow.status.in_(("done", "failed")))).one()
+    from .models import BreakerDiagnosisRow
+
+    bdiag = session.execute(select(func.count(), func.max(BreakerDiagnosisRow.id),
+                                   func.max(BreakerDiagnosisRow.finished_at))).one()
     brk = session.execute(select(func.count(), func.max(BreakerRow.baseline_reset_at))).one()
     # the DAQ links: connection state and error counters (not the heartbeat, which ticks every second)
     daq = session.execute(select(func.count(), func.sum(cast(DaqStatusRow.connected, Integer)),
                                  func.sum(DaqStatusRow.frames_dropped), func.sum(DaqStatusRow.crc_errors))).one()
-    return "|".join(str(v) for row in (ops, fits, alarms, diag, brk, daq) for v in row)
+    return "|".join(str(v) for row in (ops, fits, alarms, diag, bdiag, brk, daq) for v in row)

@@ -276,3 +276,34 @@ class CapturePreviewRow(Base):
     pruned_at: Mapped[datetime] = mapped_column(default=utcnow)
     bytes_freed: Mapped[int] = mapped_column(BigInteger, default=0)
     preview: Mapped[dict] = mapped_column(default=dict)  # {"t": [s], "travel": [rad], "vibration": [g] | None}
+
+
+class BreakerDiagnosisRow(Base):
+    """A gap diagnosis of a breaker's last N stored operations of one kind (issue 20).
+
+    ``dedupe_key`` is the selection's key (breaker, operation, the operation ids) while the row
+    is queued, running or done, and NULL once it failed: an identical request finds the row by
+    this unique column instead of queuing a second job, and a failed one may be asked again.
+    """
+
+    __tablename__ = "breaker_diagnoses"
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    breaker_id: Mapped[int] = mapped_column(ForeignKey("breakers.id", ondelete="CASCADE"))
+    operation: Mapped[str] = mapped_column(String(8))  # open | close
+    last_n: Mapped[int] = mapped_column(Integer)  # N asked for
+    operation_ids: Mapped[list] = mapped_column(default=list)  # the operations diagnosed, oldest first
+    skipped: Mapped[list] = mapped_column(default=list)  # [{"operation_id", "reason"}] left out
+    selection_key: Mapped[str] = mapped_column(String(64))
+    dedupe_key: Mapped[str | None] = mapped_column(String(64))
+    status: Mapped[str] = mapped_column(String(10), default="queued", index=True)  # queued running done failed
+    result: Mapped[dict | None]
+    failure_reason: Mapped[str | None] = mapped_column(Text)
+    requested_by: Mapped[str | None] = mapped_column(String(120))
+    requested_key_id: Mapped[int | None] = mapped_column(ForeignKey("api_keys.id", ondelete="SET NULL"))
+    requested_role: Mapped[str] = mapped_column(String(10))
+    requested_at: Mapped[datetime] = mapped_column(default=utcnow)
+    started_at: Mapped[datetime | None]
+    finished_at: Mapped[datetime | None]
+
+    __table_args__ = (Index("ix_breaker_diagnoses_breaker", "breaker_id", "id"),
+                      UniqueConstraint("dedupe_key", name="uq_breaker_diagnoses_dedupe_key"))

@@ -81,6 +81,11 @@ def protected_operations(session) -> dict[int, str]:
          "fit pending")
     mark(session.scalars(select(DiagnosisRow.operation_id).where(DiagnosisRow.status.in_(("queued", "running")))),
          "diagnosis pending")
+    from .models import BreakerDiagnosisRow
+
+    for (ids,) in session.execute(select(BreakerDiagnosisRow.operation_ids)
+                                  .where(BreakerDiagnosisRow.status.in_(("queued", "running")))):
+        mark(ids or [], "breaker diagnosis pending")
     return out
 
 

@@ -194,7 +194,10 @@ def breaker_page(request: Request, breaker_id: Id, user: Reader,
                "last": crud_web.last_operation_times(session, breaker_id=b.id),
                "watched": dict(settings.drift_settings.watched), "nav": "fleet",
                "OPENING": OPENING, "CLOSING": CLOSING, "CHARACTERISTICS": CHARACTERISTICS}
-    return page(request, "breaker.html", ctx)
+        from .routes_diagnoses import breaker_diagnosis_context
+
+        ctx.update(breaker_diagnosis_context(request, session, b))
+    return page(request, "breaker.html", ctx)  # rendered with the connection back
 
 
 @router.get("/ui/breakers/{breaker_id}/trends.json")
