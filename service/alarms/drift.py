@@ -254,6 +254,8 @@ class DriftState:
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> "DriftState":
+        if data.get("version") == 1:
+            data = _from_version_1(data)
         if data.get("version") != STATE_VERSION:
             raise ValueError(f"drift state version {data.get('version')!r} is not supported "
                              f"(expected {STATE_VERSION}); reset the baseline or replay the history")
@@ -272,6 +274,24 @@ class DriftState:
         if unknown:
             raise ValueError(f"unknown drift state fields: {', '.join(sorted(unknown))}")
         return cls(**d)
+
+
+def _from_version_1(data: Mapping[str, Any]) -> dict[str, Any]:
+    """A state of the frozen-20-fit detector (version 1) as a version-2 state: its baseline
+    stays frozen (v1 kept only mean, sd and n, not the fits to learn from) and its CUSUM, level
+    and episode carry on, so stored alarms stay in step. A baseline reset starts the learning
+    baseline."""
+    d = {k: v for k, v in data.items() if k not in ("baseline", "version")}
+    b = data.get("baseline")
+    d["version"] = STATE_VERSION
+    d["collected"] = [[c[0], c[1], None, 0.0] for c in data.get("collected", ())]
+    if b is not None:
+        d["model"] = Model(n=int(b["n"]), dof=max(int(b["n"]) - 1, 1), centre=float(b["mean"]),
+                           slope=0.0, slope_var=0.0, sd=float(b["sd"]), se2_mean=0.0).to_dict()
+        d["window"] = [[i, float(b["mean"]), None, 0.0] for i in b.get("operation_ids", ())]
+        d["excluded_ids"] = list(b.get("excluded_operation_ids", ()))
+        d["frozen"] = True
+    return d
 
 
 def normal_score(z: float, dof: int) -> float:
@@ -377,20 +397,22 @@ def update(state: DriftState, obs: FitObservation,
     z = (obs.value - expected) / band
     u = normal_score(z, model.dof)
     # Persistence for extreme fits: a score beyond z_cap counts only when a neighbouring fit
-    # leans the same way (|score| >= k) or that side is already at warning level. An isolated
-    # one is held for one fit, then dropped, so a single bad fit adds nothing; a real step is
-    # late by one fit; a ramp is not delayed.
+    # backs it: it leans the same way (|score| >= k) and lies within z_cap of it (a ramp or a
+    # step moves the scores together; a gross fit error jumps away from its neighbours), or
+    # that side is already at warning level. An isolated one is held for one fit, then dropped,
+    # so a single bad fit adds nothing; a real step is late by one fit; a ramp is not delayed.
+    def backs(a: float | None, b: float) -> bool:
+        return a is not None and a * b > 0 and abs(a) >= settings.k and abs(a - b) <= settings.z_cap
+
     to_apply, held, ignored = [], None, state.outliers_ignored
     if state.held is not None:
         held_id, held_u = state.held
-        if math.copysign(1.0, held_u) == math.copysign(1.0, u) and abs(u) >= settings.k:
+        if backs(u, held_u):
             to_apply.append((held_id, held_u))
         else:
             ignored += 1
-    prev = state.last_score
     side = state.s_rising if u > 0 else state.s_falling
-    supported = (prev is not None and prev * u > 0 and abs(prev) >= settings.k) \
-        or side >= settings.h_warning  # already a warning-level excursion that way
+    supported = backs(state.last_score, u) or side >= settings.h_warning
     if abs(u) > settings.z_cap and not supported:
         held = (obs.operation_id, u)
     else:
@@ -458,3 +480,15 @@ def _step_level(state: DriftState, obs: FitObservation, z: float,
     state = replace(state, level="none", below_count=0)
     return state, [event("cleared", state, level,
                          f"CUSUM below {settings.clear_level} for {below} consecutive fits")]
+
+
+_MOVED = ("acknowledge", "reset_baseline", "health_status", "replay", "observations_from_fit")
+
+
+def __getattr__(name: str):
+    """The lifecycle helpers live in actions.py; ``drift.replay`` etc. keep working."""
+    if name in _MOVED:
+        from service.alarms import actions
+
+        return getattr(actions, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

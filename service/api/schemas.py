@@ -91,6 +91,8 @@ class OperationPublic(ORM):
     flags: list[str]
     sample_rate: float
     n_samples: int
+    temperature_c: float | None = Field(None, description="temperature of the operation [C] (docs/alarms.md)")
+    temperature_source: str | None = Field(None, description="channel | upload | agent | scada")
     fit: FitPublic | None = None
 
 
@@ -160,6 +162,9 @@ class HealthPublic(BaseModel):
     closing: LatestFit | None = None
     characteristics: dict = Field(default_factory=dict, description="travel characteristics by operation")
     active_alarms: list[AlarmPublic]
+    temperature_compensation: dict[str, str] = Field(
+        default_factory=dict, description='per watched parameter: "temperature-compensated" or '
+                                          '"not temperature-compensated" (docs/alarms.md)')
 
 
 class TrendPoint(BaseModel):
