@@ -343,8 +343,10 @@ def upload_form(request: Request, user: Annotated[WebUser, Depends(auth.require_
 async def upload(request: Request, user: OperatorPost,
                  breaker_id: Annotated[int, Form(ge=1, le=MAX_ID)],
                  files: Annotated[list[UploadFile], File()],
-                 operation: Annotated[str, Form(pattern="^(auto|open|close)$")] = "auto"):
+                 operation: Annotated[str, Form(pattern="^(auto|open|close)$")] = "auto",
+                 temperature_c: Annotated[str, Form(max_length=20)] = ""):
     from service.api.routes import _read_capped, capture_from_upload
+    from service.web.routes_alarms import form_temperature
 
     settings = request.app.state.settings
     cap_bytes = settings.max_upload_bytes
@@ -366,8 +368,11 @@ async def upload(request: Request, user: OperatorPost,
                 blobs[(f.filename or "").lower()] = data
             capture, kind = await run_in_threadpool(capture_from_upload, blobs, row,
                                                     None if operation == "auto" else operation, cap_bytes)
+        temp = form_temperature(temperature_c)
     except HTTPException as exc:
         return form_error(str(exc.detail), exc.status_code)
+    if temp is not None:
+        capture.meta["temperature_c"], capture.meta["temperature_source"] = temp, "upload"
     result = await run_in_threadpool(request.app.state.monitor.ingest, capture, breaker_id=breaker_id,
                                      operation=kind, source="upload")
     if result.operation_id is None:

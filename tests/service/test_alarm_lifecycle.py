@@ -195,3 +195,61 @@ def test_temperature_from_the_upload_field_and_from_a_capture_channel(env, break
         row = s.get(OperationRow, r.json()["operation_id"])
         assert (row.temperature_c, row.temperature_source) == (-7.25, "channel")
     env.wait_fits()
+
+
+def _web_sign_in(env, role="operator"):
+    import re
+
+    c = env.client
+    page = c.get("/signin").text
+    token = re.search(r'name="csrf_token" value="([^"]+)"', page).group(1)
+    r = c.post("/signin", data={"api_key": env.keys[role], "csrf_token": token, "next": "/"}, follow_redirects=False)
+    assert r.status_code == 303, r.text
+
+
+def _csrf(html: str) -> str:
+    import re
+
+    return re.search(r'name="csrf_token" value="([^"]+)"', html).group(1)
+
+
+def test_web_alarm_page_shows_evidence_history_and_shelves_and_takes_out_of_service(env):
+    _leak(env)
+    _web_sign_in(env)
+    (a,) = _active(env)
+    html = env.client.get("/breakers/1/alarms").text
+    assert "not temperature-compensated" in html and 'class="evidence-plot"' in html
+    assert "first-out" in html and f'data-alarm-id="{a["id"]}"' in html and "<polyline" in html
+    r = env.client.post(f"/alarms/{a['id']}/shelve", data={"hours": "2", "reason": "crew on site",
+                                                           "csrf_token": _csrf(html)}, follow_redirects=False)
+    assert r.status_code == 303
+    html = env.client.get("/breakers/1/alarms").text
+    assert "Shelved until" in html and "crew on site" in html and "shelve by test-operator" in html
+    bad = env.client.post(f"/alarms/{a['id']}/shelve", data={"hours": "2", "reason": "", "csrf_token": _csrf(html)})
+    assert bad.status_code == 422
+    r = env.client.post("/breakers/1/out-of-service", data={"reason": "WO-77", "csrf_token": _csrf(html)},
+                        follow_redirects=False)
+    assert r.status_code == 303
+    assert "Out of service since" in env.client.get("/breakers/1").text
+    # an operator cannot return it to service (that resets the baseline: admin)
+    html = env.client.get("/breakers/1/alarms").text
+    assert env.client.post("/breakers/1/return-to-service", data={"csrf_token": _csrf(html)}).status_code == 403
+
+
+def test_web_upload_form_takes_a_temperature(env, breaker):
+    _web_sign_in(env)
+    cfg, dat = comtrade_pair(synth(breaker, "open", 7))
+    html = env.client.get("/upload").text
+    assert 'name="temperature_c"' in html
+    files = [("files", ("a.cfg", cfg)), ("files", ("a.dat", dat))]
+    bad = env.client.post("/upload", data={"breaker_id": "1", "temperature_c": "900", "csrf_token": _csrf(html)},
+                          files=files)
+    assert bad.status_code == 422 and "outside -60..100 C" in bad.text
+    r = env.client.post("/upload", data={"breaker_id": "1", "temperature_c": "4,5", "csrf_token": _csrf(html)},
+                        files=files, follow_redirects=False)
+    assert r.status_code == 303, r.text
+    op_id = int(r.headers["location"].rsplit("/", 1)[1])
+    with env.Session() as s:
+        row = s.get(OperationRow, op_id)
+        assert (row.temperature_c, row.temperature_source) == (4.5, "upload")
+    env.wait_fits()
