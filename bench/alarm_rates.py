@@ -115,9 +115,10 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--breakers", type=int, default=1000, help="in-control breakers")
     ap.add_argument("--ops", type=int, default=1020, help="operations per in-control breaker")
-    ap.add_argument("--seasonal-breakers", type=int, default=1000)
+    ap.add_argument("--seasonal-breakers", type=int, default=500)
     ap.add_argument("--uncompensated-breakers", type=int, default=100)
-    ap.add_argument("--drift-histories", type=int, default=1000)
+    ap.add_argument("--drift-histories", type=int, default=1000, help="per drift case, onset at op 30")
+    ap.add_argument("--frozen-drift-histories", type=int, default=500, help="per drift case, onset at op 300")
     ap.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1))
     ap.add_argument("--seed", type=int, default=2026)
     ap.add_argument("--out", type=Path, default=RESULTS)
@@ -150,7 +151,7 @@ def main(argv=None) -> int:
         for name, p, drift, rate in drifts:
             case += 1
             length = {"ramp1": 40, "leak": 200, "step5": 30}[name]
-            add(f"{name}@{start}", p, a.drift_histories,
+            add(f"{name}@{start}", p, a.drift_histories if start == 30 else a.frozen_drift_histories,
                 {"n_ops": start + length, "drift": drift, "rate": rate, "start": start}, case)
 
     results: dict = {}
@@ -212,6 +213,7 @@ def main(argv=None) -> int:
                 "seasonal_false_warnings_per_10k_ops_uncompensated": round(su_w, 4),
                 "seasonal_false_alarms_per_10k_ops_uncompensated": round(su_a, 4),
                 "drift_histories_per_case": a.drift_histories,
+                "frozen_drift_histories_per_case": a.frozen_drift_histories,
                 "thresholds": {"k": settings.k, "h_warning": round(settings.h_warning, 4),
                                "h_alarm": round(settings.h_alarm, 4), "z_cap": settings.z_cap,
                                "baseline_n": settings.baseline_n, "baseline_max": settings.baseline_max},

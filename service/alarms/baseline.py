@@ -28,6 +28,9 @@ MAD_TO_SD = 1.482602218505602  # MAD of a normal sample -> its sd
 THEIL_SEN_VARIANCE_FACTOR = 1.0 / 0.91
 # The model uses temperature when at least this share of the window carries one.
 TEMPERATURE_SHARE = 0.5
+# Theil-Sen costs O(n^2): past 40 fits its slope is re-estimated only when the window has grown
+# by a quarter since (its standard error changes by < 12 % in between).
+SLOPE_REFIT_FROM, SLOPE_REFIT_GROWTH = 40, 1.25
 
 
 @dataclass(frozen=True)
@@ -51,6 +54,8 @@ class Model:
     t_mean: float | None = None
     t_var: float = 0.0
     t_span: float = 0.0
+    ts_slope: float | None = None  # the raw Theil-Sen slope [unit/K] and the window size it had
+    ts_n: int = 0
 
     @property
     def compensated(self) -> bool:
@@ -74,6 +79,18 @@ class Model:
         return cls(**d)
 
 
+def theil_sen_slope(x: np.ndarray, t: np.ndarray) -> float | None:
+    """Theil-Sen slope of x on t: the median of the pairwise slopes (Sen 1968) [unit/K]; the same
+    estimate as ``scipy.stats.theilslopes(x, t)[0]`` without its confidence interval, which the
+    detector does not use and which costs most of scipy's time. None: t does not vary."""
+    i, j = np.triu_indices(x.size, 1)
+    dt = t[j] - t[i]
+    ok = dt != 0
+    if not ok.any():
+        return None
+    return float(np.median((x[j] - x[i])[ok] / dt[ok]))
+
+
 def _temperatures(temps: Sequence[float | None]) -> np.ndarray | None:
     have = [t for t in temps if t is not None]
     if not have or len(have) < TEMPERATURE_SHARE * len(temps) or len(have) < 3:
@@ -83,16 +100,15 @@ def _temperatures(temps: Sequence[float | None]) -> np.ndarray | None:
 
 
 def _slope(x: np.ndarray, t: np.ndarray, s2: float, rel_range: tuple[float, float],
-           level: float) -> tuple[float, float]:
-    """Theil-Sen slope of x on t, combined with the physics range (uniform prior) [unit/K]."""
+           level: float, b_ts: float | None) -> tuple[float, float]:
+    """Theil-Sen slope ``b_ts`` of x on t, combined with the physics range (uniform prior) [unit/K]."""
     lo, hi = sorted((rel_range[0] * level, rel_range[1] * level))
     prior_mean, prior_var = 0.5 * (lo + hi), (hi - lo) ** 2 / 12.0
     sxx = float(np.sum((t - t.mean()) ** 2))
     if prior_var == 0.0:
         return prior_mean, 0.0
-    if sxx <= 0.0 or x.size < 3:
+    if sxx <= 0.0 or x.size < 3 or b_ts is None:
         return prior_mean, prior_var
-    b_ts = float(stats.theilslopes(x, t)[0])
     data_var = max(s2, 1e-300) * THEIL_SEN_VARIANCE_FACTOR / sxx
     post_var = 1.0 / (1.0 / prior_var + 1.0 / data_var)
     b = post_var * (prior_mean / prior_var + b_ts / data_var)
@@ -100,8 +116,13 @@ def _slope(x: np.ndarray, t: np.ndarray, s2: float, rel_range: tuple[float, floa
 
 
 def fit_model(values: Sequence[float], temps: Sequence[float | None], ses: Sequence[float], *,
-              slope_range: tuple[float, float] | None, sd_floor_rel: float) -> Model:
-    """The predictive model of a baseline window (values [unit], temperatures [C], stderrs [unit])."""
+              slope_range: tuple[float, float] | None, sd_floor_rel: float,
+              previous: Model | None = None) -> Model:
+    """The predictive model of a baseline window (values [unit], temperatures [C], stderrs [unit]).
+
+    ``previous``: the model of the same window one fit shorter; its Theil-Sen slope is reused
+    while the window has grown by less than SLOPE_REFIT_GROWTH since it was estimated.
+    """
     x = np.asarray(values, dtype=float)
     n = int(x.size)
     se2 = float(np.mean(np.square(np.asarray(ses, dtype=float)))) if n else 0.0
@@ -112,15 +133,21 @@ def fit_model(values: Sequence[float], temps: Sequence[float | None], ses: Seque
         sd = float(np.std(x, ddof=1)) if n > 1 else floor
         return Model(n=n, dof=max(n - 1, 1), centre=level, slope=0.0, slope_var=0.0,
                      sd=max(sd, floor), se2_mean=se2)
-    # Two passes: the slope needs the residual spread, which needs a slope.
+    ts, ts_n = None, 0
+    if previous is not None and previous.ts_slope is not None and n >= SLOPE_REFIT_FROM \
+            and n < SLOPE_REFIT_GROWTH * previous.ts_n:
+        ts, ts_n = previous.ts_slope, previous.ts_n
+    elif n >= 3 and np.ptp(t) > 0:
+        ts, ts_n = theil_sen_slope(x, t), n
+    # Two passes: the slope's weight needs the residual spread, which needs a slope.
     s2 = float(np.var(x, ddof=1)) if n > 1 else floor ** 2
     for _ in range(2):
-        b, b_var = _slope(x, t, s2, slope_range, level)
+        b, b_var = _slope(x, t, s2, slope_range, level, ts)
         r = x - b * (t - t.mean())
         s2 = max(float(np.var(r, ddof=2)) if n > 2 else s2, floor ** 2)
     return Model(n=n, dof=max(n - 2, 1), centre=float(np.mean(r)), slope=b, slope_var=b_var,
                  sd=math.sqrt(s2), se2_mean=se2, t_mean=float(t.mean()), t_var=float(t.var()),
-                 t_span=float(t.max() - t.min()))
+                 t_span=float(t.max() - t.min()), ts_slope=ts, ts_n=ts_n)
 
 
 def screen(values: Sequence[float], temps: Sequence[float | None], *,

@@ -311,10 +311,11 @@ def t_for_score(u: float, dof: int) -> float:
     return -float(special.stdtrit(dof, special.ndtr(-u)))
 
 
-def _model(window: tuple, parameter: str, settings: DriftSettings) -> Model:
+def _model(window: tuple, parameter: str, settings: DriftSettings,
+           previous: Model | None = None) -> Model:
     _, values, temps, ses = zip(*window)
     return fit_model(values, temps, ses, slope_range=settings.slope_range(parameter),
-                     sd_floor_rel=settings.sd_floor_rel)
+                     sd_floor_rel=settings.sd_floor_rel, previous=previous)
 
 
 def _start_monitoring(state: DriftState, collected: tuple, settings: DriftSettings) -> DriftState:
@@ -427,7 +428,7 @@ def update(state: DriftState, obs: FitObservation,
         lim = t_for_score(settings.z_cap, model.dof) * band  # Huber-type winsorised update
         value = min(expected + lim, max(expected - lim, obs.value))
         window = window + ((obs.operation_id, value, obs.temperature, obs.se),)
-        new_model = _model(window, state.parameter, settings)
+        new_model = _model(window, state.parameter, settings, previous=model)
         frozen = _frozen(window, new_model, settings)
 
     s_r, run_r, len_r = state.s_rising, state.run_rising, state.run_length_rising

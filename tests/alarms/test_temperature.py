@@ -90,3 +90,16 @@ def test_state_with_temperature_round_trips():
     import json
     state = _alarms(True)[1][1]
     assert DriftState.from_dict(json.loads(json.dumps(state.to_dict(), allow_nan=False))) == state
+
+
+def test_the_theil_sen_slope_is_scipys():
+    from scipy import stats
+
+    from service.alarms.baseline import theil_sen_slope
+
+    rng = np.random.default_rng(1)
+    t = rng.uniform(-25, 40, 60)
+    x = 39.5 * (1 - 0.004 * (t - 20)) + rng.normal(0, 0.6, 60)
+    x[[3, 17]] *= 0.7  # outliers: the median of pairwise slopes shrugs them off
+    assert theil_sen_slope(x, t) == pytest.approx(stats.theilslopes(x, t)[0], rel=1e-12)
+    assert theil_sen_slope(x, np.full(60, 5.0)) is None
