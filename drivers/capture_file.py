@@ -19,13 +19,18 @@ from drivers.comtrade import Record, decode_text, read_cff_bytes, read_record, r
 # Unit spellings accepted per quantity, with the factor to our unit.
 TRAVEL_UNITS = {"rad": 1.0, "radian": 1.0, "radians": 1.0, "deg": np.pi / 180, "degree": np.pi / 180,
                 "degrees": np.pi / 180, "°": np.pi / 180, "mrad": 1e-3}
+# Temperature channel units -> (factor, offset) to Celsius.
+TEMPERATURE_UNITS = {"c": (1.0, 0.0), "°c": (1.0, 0.0), "degc": (1.0, 0.0), "deg c": (1.0, 0.0),
+                     "celsius": (1.0, 0.0), "k": (1.0, -273.15), "kelvin": (1.0, -273.15)}
+# A temperature outside this is a sensor fault (or not a temperature) [C].
+TEMPERATURE_PLAUSIBLE_C = (-60.0, 100.0)
 VIBRATION_UNITS = {"g": 1.0, "gn": 1.0, "m/s2": 1 / 9.80665, "m/s^2": 1 / 9.80665, "m/s²": 1 / 9.80665}
 
 MAX_SAMPLES = 50_000_000
 
 
 def read_capture(path: str | Path, *, travel_channel: str = "travel", vibration_channel: str = "vibration",
-                 encoding: str | None = None) -> Capture:
+                 encoding: str | None = None, temperature_channel: str | None = None) -> Capture:
     """Read a COMTRADE ``.cfg`` (with its ``.dat``), a ``.dat``, a ``.cff``, or a CSV
     ``t_s,travel_rad[,vibration_g]``.
 
@@ -43,23 +48,23 @@ def read_capture(path: str | Path, *, travel_channel: str = "travel", vibration_
     suffix = path.suffix.lower()
     if suffix in (".cfg", ".cff", ".dat"):
         return read_comtrade(path, travel_channel=travel_channel, vibration_channel=vibration_channel,
-                             encoding=encoding)
+                             encoding=encoding, temperature_channel=temperature_channel)
     if suffix in (".csv", ".txt"):
         return read_csv(path, encoding=encoding)
     raise CaptureError(f"{path}: unknown capture format '{path.suffix}'; give a COMTRADE .cfg/.cff or a .csv")
 
 
 def read_comtrade(cfg_path: str | Path, *, travel_channel: str = "travel", vibration_channel: str = "vibration",
-                  encoding: str | None = None) -> Capture:
+                  encoding: str | None = None, temperature_channel: str | None = None) -> Capture:
     """Read a COMTRADE record and map its channels to ours."""
     record = read_record(cfg_path, encoding=encoding)
     return record_to_capture(record, source=str(cfg_path), travel_channel=travel_channel,
-                             vibration_channel=vibration_channel)
+                             vibration_channel=vibration_channel, temperature_channel=temperature_channel)
 
 
 def load_comtrade_bytes(cfg: bytes | str, dat: bytes | None = None, *, source: str = "upload",
                         travel_channel: str = "travel", vibration_channel: str = "vibration",
-                        encoding: str | None = None) -> Capture:
+                        encoding: str | None = None, temperature_channel: str | None = None) -> Capture:
     """Read a COMTRADE pair (or a CFF when ``dat`` is None) held in memory (uploads)."""
     if isinstance(cfg, str):
         cfg = cfg.encode("utf-8")
@@ -70,7 +75,7 @@ def load_comtrade_bytes(cfg: bytes | str, dat: bytes | None = None, *, source: s
         stem = name.rsplit(".", 1)[0]
         record = read_record_bytes(cfg, dat, name=name, dat_name=f"{stem}.dat", encoding=encoding)
     return record_to_capture(record, source=source, travel_channel=travel_channel,
-                             vibration_channel=vibration_channel)
+                             vibration_channel=vibration_channel, temperature_channel=temperature_channel)
 
 
 def record_start_time(record: Record) -> datetime | None:
@@ -85,7 +90,7 @@ def record_start_time(record: Record) -> datetime | None:
 
 
 def record_to_capture(record: Record, *, source: str, travel_channel: str = "travel",
-                      vibration_channel: str = "vibration") -> Capture:
+                      vibration_channel: str = "vibration", temperature_channel: str | None = None) -> Capture:
     names = [ch.name.strip() for ch in record.header.analog]
     idx_t = _channel_index(names, travel_channel, source)
     idx_v = _find(names, vibration_channel)
@@ -105,8 +110,36 @@ def record_to_capture(record: Record, *, source: str, travel_channel: str = "tra
                   start_time=record_start_time(record), source=source,
                   travel_limits=_channel_limits(ch_t, TRAVEL_UNITS), vibration_limits=vib_limits,
                   meta={"warnings": notes, "encoding": record.encoding})
+    if temperature_channel:
+        temp = _temperature(record, names, temperature_channel, source, notes)
+        if temp is not None:
+            cap.meta["temperature_c"], cap.meta["temperature_source"] = temp, "channel"
     check_finite(cap)
     return cap
+
+
+def _temperature(record: Record, names, wanted: str, source: str, notes: list) -> float | None:
+    """Median of the temperature channel [C], or None with a note saying why (a missing or odd
+    temperature never makes the capture unusable: the operation is just not compensated)."""
+    i = _find(names, wanted)
+    if i is None:
+        notes.append(f"no temperature channel named '{wanted}': operation not temperature-compensated")
+        return None
+    unit = record.header.analog[i].unit.strip().lower()
+    if unit not in TEMPERATURE_UNITS:
+        notes.append(f"temperature channel '{wanted}' is in '{record.header.analog[i].unit}', expected "
+                     f"C or K: operation not temperature-compensated")
+        return None
+    factor, offset = TEMPERATURE_UNITS[unit]
+    values = record.uniform_channel(i) * factor + offset
+    values = values[np.isfinite(values)]
+    lo, hi = TEMPERATURE_PLAUSIBLE_C
+    t = float(np.median(values)) if values.size else float("nan")
+    if not lo <= t <= hi:
+        notes.append(f"temperature channel '{wanted}' reads {t:.4g} C, outside {lo:g}..{hi:g} C "
+                     f"(sensor fault?): operation not temperature-compensated")
+        return None
+    return round(t, 3)
 
 
 def _channel_limits(ch, table) -> tuple | None:

@@ -155,8 +155,10 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
     app.state.metrics_registry, app.state.metrics_local = build_registry(app)
 
     from .routes import router
+    from .routes_alarms import router as alarm_router
 
     app.include_router(router)
+    app.include_router(alarm_router)
 
     from .routes_diagnoses import router as diagnoses_router  # breaker-level diagnoses (issue 20)
 

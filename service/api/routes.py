@@ -132,8 +132,13 @@ def breaker_health(breaker_id: BreakerId, session: SessionDep, settings: Setting
         chars["opening"] = opening.characteristics
     if closing and closing.characteristics:
         chars["closing"] = closing.characteristics
+    from service.jobs.alarm_actions import compensation
+
+    comp = {p: c["status"] for p, c in compensation(session, breaker_id=breaker_id,
+                                                    settings=settings.drift_settings).items()}
     return s.HealthPublic(breaker_id=breaker_id, status=status, opening=opening, closing=closing,
-                          characteristics=chars, active_alarms=[s.AlarmPublic.model_validate(a) for a in alarms])
+                          characteristics=chars, active_alarms=[s.AlarmPublic.model_validate(a) for a in alarms],
+                          temperature_compensation=comp)
 
 
 @router.get("/breakers/{breaker_id}/parameters", response_model=s.TrendPublic, responses={**AUTH, **NOT_FOUND},
@@ -263,6 +268,11 @@ async def upload_capture(breaker_id: BreakerId, request: Request, response: Resp
                          files: Annotated[list[UploadFile], File(description="a .cfg and its .dat, one .cff, or one .zip")],
                          operation: Annotated[Literal["open", "close"] | None,
                                               Form(description="inferred from the travel when omitted")] = None,
+                         temperature_c: Annotated[float | None, Form(
+                             ge=-60, le=100, allow_inf_nan=False,
+                             description="ambient or mechanism temperature of the operation [C] "
+                                         "(docs/alarms.md); else the capture's temperature channel, "
+                                         "else the latest SCADA value")] = None,
                          idempotency_key: Annotated[str | None, Header(
                              alias="Idempotency-Key", pattern=r"^[0-9a-f]{64}$",
                              description="the capture's content hash (SHA-256 of the hex SHA-256 of the .cfg "
@@ -284,6 +294,8 @@ async def upload_capture(breaker_id: BreakerId, request: Request, response: Resp
     except UploadRefused as exc:
         raise HTTPException(exc.status_code, exc.detail) from None
     source = "agent" if who.role == "agent" else "upload"
+    if temperature_c is not None:  # given with the upload: it beats the capture's channel
+        upload.capture.meta["temperature_c"], upload.capture.meta["temperature_source"] = temperature_c, source
     result = await run_in_threadpool(ingest_upload, monitor, settings, upload, breaker_id=breaker_id, source=source,
                                      capture_key=idempotency_key)
     return s.UploadAccepted(operation_id=result.operation_id, capture_key=result.capture_key, operation=upload.kind,
@@ -312,6 +324,9 @@ def acknowledge_alarm(alarm_id: AlarmId, session: SessionDep, settings: Settings
     if alarm.state == "raised":
         crud.acknowledge_alarm(session, alarm=alarm, by=who.name, comment=body.comment if body else None)
         acknowledge_drift(session, alarm=alarm, by=who.name, settings=settings.drift_settings)
+        from service.jobs.alarm_actions import audit_acknowledge
+
+        audit_acknowledge(session, alarm=alarm, by=who.name, comment=body.comment if body else None)
         session.commit()
     return alarm
 

@@ -103,6 +103,8 @@ class OperationPublic(ORM):
     n_samples: int
     clock_suspect: bool = Field(False, description="dated more than clock_tolerance_s after it arrived: "
                                 "not latest, not on SCADA, not in the drift baseline")
+    temperature_c: float | None = Field(None, description="temperature of the operation [C] (docs/alarms.md)")
+    temperature_source: str | None = Field(None, description="channel | upload | agent | scada")
     fit: FitPublic | None = None
 
 
@@ -172,6 +174,9 @@ class HealthPublic(BaseModel):
     closing: LatestFit | None = None
     characteristics: dict = Field(default_factory=dict, description="travel characteristics by operation")
     active_alarms: list[AlarmPublic]
+    temperature_compensation: dict[str, str] = Field(
+        default_factory=dict, description='per watched parameter: "temperature-compensated" or '
+                                          '"not temperature-compensated" (docs/alarms.md)')
 
 
 class TrendPoint(BaseModel):

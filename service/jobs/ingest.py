@@ -135,7 +135,9 @@ class Monitor:
         entry = {"capture_key": key, "breaker_id": breaker_id, "kind": kind,
                  "occurred_at": occurred.isoformat(), "source": source, "capture_path": str(path.resolve()),
                  "capture_sha256": sha, "flags": flags, "clock_suspect": suspect, "sample_rate": capture.sample_rate,
-                 "n_samples": int(capture.travel.size), "spooled_at": now.isoformat()}
+                 "n_samples": int(capture.travel.size), "spooled_at": now.isoformat(),
+                 "temperature_c": capture.meta.get("temperature_c"),
+                 "temperature_source": capture.meta.get("temperature_source")}
         self.spool.put(entry)
         if self.metrics is not None:
             self.metrics.captures.labels(source=source).inc()
@@ -153,7 +155,8 @@ class Monitor:
                     occurred_at=datetime.fromisoformat(entry["occurred_at"]), source=entry["source"],
                     capture_path=entry["capture_path"], capture_sha256=entry["capture_sha256"],
                     flags=entry["flags"], sample_rate=entry["sample_rate"], n_samples=entry["n_samples"],
-                    clock_suspect=entry.get("clock_suspect", False))
+                    clock_suspect=entry.get("clock_suspect", False),
+                    temperature_c=entry.get("temperature_c"), temperature_source=entry.get("temperature_source"))
                 op_id = op.id
         except IntegrityError:  # stored concurrently by the spool thread: look it up
             with self.Session() as session:

@@ -128,7 +128,8 @@ def capture_from_upload(blobs: dict[str, bytes], row, operation: str | None, cap
         # the same reader as hvcb fit/detect/inspect: the same message for the same file
         capture = load_comtrade_bytes(cfg, dat, source=f"upload:{name}",
                                       travel_channel=breaker.channels.get("travel", "travel"),
-                                      vibration_channel=breaker.channels.get("vibration", "vibration"))
+                                      vibration_channel=breaker.channels.get("vibration", "vibration"),
+                                      temperature_channel=breaker.channels.get("temperature"))
         if capture.travel.size < 16:
             raise CaptureError(f"{name}: the record holds fewer than 16 samples")
         from service.jobs.ingest import infer_operation

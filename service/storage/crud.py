@@ -84,9 +84,13 @@ def breaker_model(row: BreakerRow):
 # -- operations and fits -----------------------------------------------------------------------
 def create_operation(session: Session, *, capture_key: str, breaker_id: int, kind: str,
                      occurred_at: datetime, source: str, capture_path: str, capture_sha256: str,
-                     flags: list, sample_rate: float, n_samples: int,
-                     clock_suspect: bool = False) -> tuple[OperationRow, bool]:
-    """Store an operation and queue its fit. Idempotent on ``capture_key``: returns (row, created)."""
+                     flags: list, sample_rate: float, n_samples: int, clock_suspect: bool = False,
+                     temperature_c: float | None = None,
+                     temperature_source: str | None = None) -> tuple[OperationRow, bool]:
+    """Store an operation and queue its fit. Idempotent on ``capture_key``: returns (row, created).
+
+    ``temperature_c`` [C]: the operation's own (upload field, agent, capture channel); without
+    it the breaker's latest SCADA temperature applies (service/storage/crud_alarms.py)."""
     existing = session.scalar(select(OperationRow).where(OperationRow.capture_key == capture_key))
     if existing is not None:
         return existing, False
@@ -94,6 +98,11 @@ def create_operation(session: Session, *, capture_key: str, breaker_id: int, kin
                       source=source, capture_path=capture_path, capture_sha256=capture_sha256,
                       flags=list(flags), sample_rate=float(sample_rate), n_samples=int(n_samples),
                       clock_suspect=bool(clock_suspect))
+    from service.storage.crud_alarms import operation_temperature
+
+    op.temperature_c, op.temperature_source = operation_temperature(
+        session, breaker_id=breaker_id, occurred_at=occurred_at, temperature_c=temperature_c,
+        source=temperature_source)
     session.add(op)
     session.flush()
     session.add(FitRow(operation_id=op.id, breaker_id=breaker_id, kind=kind, status="queued"))

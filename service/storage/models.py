@@ -5,7 +5,7 @@ from __future__ import annotations
 from datetime import datetime, timezone
 
 from sqlalchemy import (JSON, BigInteger, Boolean, DateTime, Float, ForeignKey, Index, Integer, String, Text,
-                        TypeDecorator, UniqueConstraint, false)
+                        TypeDecorator, UniqueConstraint, false, true)
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 
 
@@ -56,6 +56,15 @@ class BreakerRow(Base):
     cam_table: Mapped[str] = mapped_column(Text)
     content_sha256: Mapped[str] = mapped_column(String(64))
     baseline_reset_at: Mapped[datetime | None]
+    # Latest temperature SCADA wrote (PUT /api/v1/breakers/{name}/temperature) [C]; it applies
+    # to operations that carry none of their own.
+    scada_temperature_c: Mapped[float | None] = mapped_column(Float)
+    scada_temperature_at: Mapped[datetime | None]
+    # Out of service (maintenance): fits are not fed to the drift detector; the baseline is
+    # reset when the breaker returns to service.
+    out_of_service_since: Mapped[datetime | None]
+    out_of_service_by: Mapped[str | None] = mapped_column(String(120))
+    out_of_service_reason: Mapped[str | None] = mapped_column(Text)
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     updated_at: Mapped[datetime] = mapped_column(default=utcnow)
 
@@ -79,6 +88,8 @@ class OperationRow(Base):
     # dated more than [clock_tolerance_s] after it arrived: kept and shown, but never "latest",
     # never on SCADA and never in the drift baseline (migration 0006)
     clock_suspect: Mapped[bool] = mapped_column(Boolean, default=False, server_default=false(), index=True)
+    temperature_c: Mapped[float | None] = mapped_column(Float)  # ambient/mechanism [C]
+    temperature_source: Mapped[str | None] = mapped_column(String(16))  # channel|upload|agent|scada
     fit: Mapped[FitRow | None] = relationship(back_populates="operation", uselist=False, lazy="selectin")
 
     __table_args__ = (Index("ix_operations_breaker_time", "breaker_id", "occurred_at"),)
@@ -177,6 +188,28 @@ class AlarmRow(Base):
     acknowledged_by: Mapped[str | None] = mapped_column(String(120))
     ack_comment: Mapped[str | None] = mapped_column(Text)
     cleared_at: Mapped[datetime | None]
+    # First-out (ISA-18.2): raised while no other alarm of the breaker was active.
+    first_out: Mapped[bool] = mapped_column(Boolean, default=True, server_default=true())
+    shelved_until: Mapped[datetime | None]
+    shelved_at: Mapped[datetime | None]
+    shelved_by: Mapped[str | None] = mapped_column(String(120))
+    shelve_reason: Mapped[str | None] = mapped_column(Text)
+
+
+class AlarmActionRow(Base):
+    """Audit trail of what people did to alarms and breakers: who, when, why."""
+
+    __tablename__ = "alarm_actions"
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    breaker_id: Mapped[int] = mapped_column(ForeignKey("breakers.id", ondelete="CASCADE"))
+    alarm_id: Mapped[int | None] = mapped_column(ForeignKey("alarms.id", ondelete="CASCADE"))
+    action: Mapped[str] = mapped_column(String(24))
+    by: Mapped[str] = mapped_column(String(120))
+    at: Mapped[datetime] = mapped_column(default=utcnow)
+    reason: Mapped[str] = mapped_column(Text, default="")
+    until: Mapped[datetime | None]
+
+    __table_args__ = (Index("ix_alarm_actions_breaker", "breaker_id", "at"),)
 
 
 class DriftStateRow(Base):

@@ -367,8 +367,10 @@ def upload_form(request: Request, user: Annotated[WebUser, Depends(auth.require_
 async def upload(request: Request, user: OperatorPost,
                  breaker_id: Annotated[int, Form(ge=1, le=MAX_ID)],
                  files: Annotated[list[UploadFile], File()],
-                 operation: Annotated[str, Form(pattern="^(auto|open|close)$")] = "auto"):
+                 operation: Annotated[str, Form(pattern="^(auto|open|close)$")] = "auto",
+                 temperature_c: Annotated[str, Form(max_length=20)] = ""):
     from service.jobs.upload import UploadRefused, ingest_upload, parse_upload
+    from service.web.routes_alarms import form_temperature
 
     settings = request.app.state.settings
 
@@ -386,9 +388,12 @@ async def upload(request: Request, user: OperatorPost,
         row = await run_in_threadpool(breaker_row)
         if row is None:
             return await run_in_threadpool(form_error, f"there is no breaker {breaker_id}", 422)
+        temp = form_temperature(temperature_c)
         upload = await parse_upload(request.app.state, files, row, None if operation == "auto" else operation)
-    except UploadRefused as exc:
+    except (UploadRefused, HTTPException) as exc:
         return await run_in_threadpool(form_error, str(exc.detail), exc.status_code)
+    if temp is not None:
+        upload.capture.meta["temperature_c"], upload.capture.meta["temperature_source"] = temp, "upload"
     result = await run_in_threadpool(ingest_upload, request.app.state.monitor, settings, upload,
                                      breaker_id=breaker_id, source="upload", capture_key=None)
     if result.operation_id is None:
