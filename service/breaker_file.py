@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from .mechanics.breaker import TABLE2_RANGES, Breaker
+from .breaker_travel import TravelMapError, travel_options
 from .mechanics.cam_profile import CamProfile, CamProfileError
 
 
@@ -48,9 +49,9 @@ def load_breaker(path: str | Path) -> Breaker:
             raise BreakerFileError(f"breaker file {path}: {key} must be positive, got {values[key]}")
     cam_block = data.get("cam", {})
     cam_name = cam_block.get("profile")
-    if not cam_name:
+    if not cam_name and "unknown_design" not in data:  # an unknown design has no cam table
         raise BreakerFileError(f"breaker file {path} has no [cam] profile")
-    cam = load_cam_profile(path.parent / cam_name)
+    cam = load_cam_profile(path.parent / cam_name) if cam_name else None
     ranges = dict(TABLE2_RANGES)
     for name, rng in data.get("ranges", {}).items():
         if name not in ranges or len(rng) != 2 or not rng[0] < rng[1]:
@@ -59,13 +60,20 @@ def load_breaker(path: str | Path) -> Breaker:
     travel = data.get("travel", {})
     channels = {"travel": "travel", "vibration": "vibration"}
     channels.update({k: str(v) for k, v in data.get("channels", {}).items()})
+    stroke = float(travel.get("stroke_rad", cam.stroke if cam else 1.0))
+    try:
+        extra = travel_options(data, path, stroke, channels["travel"])
+    except TravelMapError as exc:
+        raise BreakerFileError(str(exc)) from None
+    channels["travel"] = extra.pop("travel_channel")
     return Breaker(
         name=str(data.get("name", path.stem)),
         cam=cam,
-        stroke=float(travel.get("stroke_rad", cam.stroke)),
+        stroke=stroke,
         ranges=ranges,
         channels=channels,
         acquisition=dict(data.get("acquisition", {})),
+        **extra,
         **values,
     )
 
