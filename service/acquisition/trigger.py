@@ -408,8 +408,14 @@ def detect_capture(capture: Capture, settings: TriggerSettings, *, block_samples
     ``on_progress(n)`` is told each time ``n`` more samples have been scanned.
     """
     if capture.vibration is None:
-        raise ValueError(f"{capture.source or 'the recording'} has no vibration channel: "
-                         "the trigger needs the latch-release shock")
+        if not capture.aux_of("coil_current"):
+            raise ValueError(f"{capture.source or 'the recording'} has no vibration channel and no coil "
+                             "currents: the trigger needs the latch-release shock or the command")
+        from .coil_trigger import detect_from_coils  # an analyser record: coils give the command
+
+        if on_progress is not None:
+            on_progress(capture.travel.size)
+        return detect_from_coils(capture, settings)
     detector = TriggerDetector(settings, capture.sample_rate)
     found = []
     first = int(capture.first_sample_index)

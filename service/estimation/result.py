@@ -52,6 +52,15 @@ class FitResult:
         Classic travel characteristics of the measured curve.
     start : str
         How the search started: ``cold search`` or ``warm start from …``.
+    structure : dict
+        Structure of an unknown design estimated from the curve (``alpha0``: value, stderr,
+        ci95 [rad]); its uncertainty is already in every parameter's CI.
+    characteristics_record : dict
+        The characteristics in the record's own unit (mm, m/s) for a travel recorded in mm.
+    command_source : str
+        What the window starts at: ``latch shock``, ``coil C4/...``, ``first sample``.
+    picked : dict or None
+        For a record of several operations: which one was fitted (kind, index, of how many).
     """
 
     operation: str
@@ -77,6 +86,10 @@ class FitResult:
     warnings: list = field(default_factory=list)
     characteristics: dict = field(default_factory=dict)
     start: str = "cold search"
+    structure: dict = field(default_factory=dict)
+    characteristics_record: dict = field(default_factory=dict)
+    command_source: str = "latch shock"
+    picked: dict | None = None
 
     def to_dict(self) -> dict:
         out = {
@@ -102,6 +115,13 @@ class FitResult:
             "characteristics": self.characteristics,
             "start": self.start,
         }
+        if self.structure:
+            out["structure"] = self.structure
+        if self.characteristics_record:
+            out["characteristics_record"] = self.characteristics_record
+        out["command_source"] = self.command_source
+        if self.picked is not None:
+            out["picked"] = self.picked
         if self.operation == "close":
             out["dc_used"] = float(self.dc_used)
             out["dc_source"] = self.dc_source
@@ -118,6 +138,10 @@ class FitResult:
         t = capture.t - self.window_s[0]
         if self.operation == "open":
             x = [self.parameters[k] for k in ("AO", "BO", "DO", "EO")] + [self.onset_delay_s]
+            if "alpha0" in self.structure:
+                import dataclasses
+
+                breaker = dataclasses.replace(breaker, alpha0=self.structure["alpha0"]["value"])
             theta = OpeningCurves.at(t, x, breaker)
         else:
             x = [self.parameters[k] for k in ("AC", "BC", "CC")] + [self.onset_delay_s]
