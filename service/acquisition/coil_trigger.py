@@ -105,7 +105,10 @@ def _coil_rises(capture: Capture) -> list:
     for ch in capture.aux_of("coil_current"):
         x = np.asarray(ch.data, dtype=float)
         lo, hi = np.percentile(x, 1), np.percentile(x, 99.5)
-        if hi - lo <= 0:
+        # Sample-to-sample noise (robust to the steps themselves): a coil that is never
+        # energised spans a few noise sd; one that is, hundreds. 20 sd keeps noise out.
+        noise = 1.4826 * float(np.median(np.abs(np.diff(x)))) / np.sqrt(2.0)
+        if hi - lo <= max(20.0 * noise, 0.0) or hi - lo <= 0:
             continue
         on = moving_average(x, max(int(2e-4 * capture.sample_rate), 1)) > lo + COIL_LEVEL * (hi - lo)
         rises = np.flatnonzero(on[1:] & ~on[:-1]) + 1

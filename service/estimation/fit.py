@@ -183,13 +183,15 @@ def fit_capture(capture: Capture, breaker: Breaker, operation: str, *, dc: float
         result.picked = picked
     if offset_s:
         result.window_s = (result.window_s[0] + offset_s, result.window_s[1] + offset_s)
-    if window.tau_range is not None:
+    if window.tau_range is not None and window.shock_found:
         result.warnings.append(f"no vibration channel: the window starts at the {window.command_source} "
                                f"rise and the onset delay was searched in {window.tau_range[0] * 1e3:.1f}–"
                                f"{window.tau_range[1] * 1e3:.1f} ms (coil-to-motion)")
     if not window.shock_found and capture.vibration is not None:
+        where = ("the first sample" if window.tau_range is None else
+                 f"{window.tau_range[1] * 1e3 - 1:.0f} ms before the travel departs")
         result.warnings.append("no latch-release shock found in the vibration channel: "
-                               "the window starts at the first sample")
+                               f"the window starts at {where}")
     if result.rmse_rad > 3.0 * window.noise_rad:
         result.warnings.append(f"the fit leaves {result.rmse_rad / window.noise_rad:.1f}× the noise "
                                "floor: the reduced model does not explain this curve (run hvcb diagnose)")

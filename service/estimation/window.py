@@ -156,6 +156,11 @@ def prepare_window(capture: Capture, breaker: Breaker, operation: str) -> FitWin
             command_source = str(capture.meta.get("command_source", "coil"))
             depart = (i_move - i_cmd) / fs
             tau_range = (max(0.0, depart - ONSET_BEFORE_DEPARTURE_S), depart + 1e-3)
+    if not shock_found and i_move > (ONSET_BEFORE_DEPARTURE_S + 2e-3) * fs:
+        # No shock and no command (an accelerometer's shock lost, e.g. filtered out at a low
+        # rate): start shortly before the travel departs and search the onset across that span.
+        i_shock = i_move - int(ONSET_BEFORE_DEPARTURE_S * fs)
+        tau_range, command_source = (0.0, ONSET_BEFORE_DEPARTURE_S + 1e-3), "travel departure"
     lead = int((0.002 if operation == 'open' else 0.012) * fs)
     idle = y[:i_shock] if shock_found and tau_range is None else y[: max(i_move - lead, 0)]
     if idle.size >= MIN_IDLE:
