@@ -72,10 +72,13 @@ def create_breaker(body: s.BreakerCreate, session: SessionDep, _: AdminDep):
 
     try:
         data = tomllib.loads(body.breaker_file)
-        cam_name = Path(str(data["cam"]["profile"])).name
+        cam = data.get("cam", {}).get("profile")  # none for an unknown design
+        cam_name = Path(str(cam)).name if cam else ""
         with tempfile.TemporaryDirectory() as tmp:
-            (Path(tmp) / cam_name).write_text(body.cam_table)
-            (Path(tmp) / "breaker.toml").write_text(body.breaker_file.replace(str(data["cam"]["profile"]), cam_name))
+            if cam:
+                (Path(tmp) / cam_name).write_text(body.cam_table)
+            (Path(tmp) / "breaker.toml").write_text(body.breaker_file.replace(str(cam), cam_name) if cam
+                                                    else body.breaker_file)
             breaker = load_breaker(Path(tmp) / "breaker.toml")
     except (tomllib.TOMLDecodeError, KeyError, TypeError, ValueError, OSError) as exc:
         raise HTTPException(422, f"invalid breaker file: {exc}") from None
@@ -289,6 +292,8 @@ def capture_from_upload(blobs: dict[str, bytes], row, operation: str | None, cap
     from service.acquisition.capture_file import load_comtrade_bytes
 
     names = list(blobs)
+    if len(names) == 1 and names[0].endswith((".csv", ".txt")):
+        return _text_capture_upload(blobs[names[0]], names[0], row, operation, idempotency_key)
     if len(names) == 1 and names[0].endswith(".zip"):
         cfg, dat, name = _pair_from_zip(blobs[names[0]], cap_bytes)
     elif len(names) == 1 and names[0].endswith(".cff"):
@@ -298,7 +303,7 @@ def capture_from_upload(blobs: dict[str, bytes], row, operation: str | None, cap
         dat_names = [n for n in names if n.endswith(".dat")]
         if len(cfg_names) != 1 or len(dat_names) != 1 or len(names) != 2:
             raise HTTPException(422, "send a COMTRADE .cfg and its .dat (two files), one .cff, "
-                                     "or one .zip holding a .cfg and its .dat")
+                                     "one .zip holding a .cfg and its .dat, or one analyser export (.csv)")
         cfg, dat, name = blobs[cfg_names[0]], blobs[dat_names[0]], cfg_names[0]
     if idempotency_key is not None and content_hash(cfg, dat or b"") != idempotency_key:
         raise HTTPException(422, "the Idempotency-Key is not the content hash of the uploaded .cfg and .dat "
@@ -321,6 +326,32 @@ def capture_from_upload(blobs: dict[str, bytes], row, operation: str | None, cap
         raise
     except Exception:  # a reader bug must not become a 500 for the client; the reader checks its input
         raise HTTPException(422, f"{name}: the capture could not be read as COMTRADE") from None
+    return capture, kind
+
+
+def _text_capture_upload(data: bytes, name: str, row, operation: str | None, idempotency_key: str | None):
+    """One text capture (a breaker-analyser export, or a CSV t_s,travel_rad[,vibration_g]) through
+    the same reader as the CLI; an analyser record's operation is cut out here."""
+    from service.acquisition.capture_file import load_capture_bytes
+    from service.estimation.record import upload_operation
+
+    if idempotency_key is not None and content_hash(data, b"") != idempotency_key:
+        raise HTTPException(422, "the Idempotency-Key is not the content hash of the uploaded file "
+                                 "(damaged in transit, or the wrong key)")
+    breaker = crud.breaker_model(row)
+    try:
+        capture = load_capture_bytes(data, name=name, travel_channel=breaker.channels.get("travel", "travel"),
+                                     vibration_channel=breaker.channels.get("vibration", "vibration"))
+        capture, kind = upload_operation(capture, breaker, operation)
+        if capture.travel.size < 16:
+            raise CaptureError(f"{name}: the record holds fewer than 16 samples")
+        from service.jobs.ingest import infer_operation
+
+        kind = kind or infer_operation(capture)
+    except ValueError as exc:  # CaptureError, FitError: the reader's words
+        raise HTTPException(422, str(exc) if name in str(exc) else f"{name}: {exc}") from None
+    except Exception:  # a reader bug must not become a 500 for the client
+        raise HTTPException(422, f"{name}: the capture could not be read") from None
     return capture, kind
 
 

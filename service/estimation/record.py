@@ -36,3 +36,21 @@ def operation_capture(record: Capture, breaker: Breaker, operation: str, index: 
     picked = {"operation": operation, "index": index, "of": len(kind),
               "record_operations": [o.operation for o in found]}
     return op.capture, offset, picked
+
+
+def upload_operation(record: Capture, breaker: Breaker, operation: str | None):
+    """``(capture, kind)`` to store for an upload: an analyser record's one operation (the
+    asked kind's first, or the only one), any other capture as it is with ``operation``."""
+    if record.vibration is not None or not record.aux_of("coil_current"):
+        return record, operation
+    found = detect_from_coils(record, TriggerSettings.from_breaker(breaker))
+    kinds = [op.operation for op in found]
+    if not found:
+        raise FitError(f"{record.source or 'capture'}: no opening or closing found in this analyser record")
+    if operation is None:
+        if len(set(kinds)) > 1:
+            raise FitError(f"{record.source or 'capture'}: the record holds {'-'.join(k[0].upper() for k in kinds)} "
+                           "operations; say which to store with operation=open or operation=close")
+        operation = kinds[0]
+    capture, _, _ = operation_capture(record, breaker, operation, 0)
+    return capture, operation

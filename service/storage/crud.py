@@ -28,8 +28,9 @@ def register_breaker_file(session: Session, *, path: Path, tag: str | None = Non
     path = Path(path)
     breaker = load_breaker(path)  # validates before anything is stored
     text = path.read_text()
-    cam_name = tomllib.loads(text)["cam"]["profile"]
-    cam_text = (path.parent / cam_name).read_text()
+    cam_name = tomllib.loads(text).get("cam", {}).get("profile")  # none for an unknown design
+    cam_text = (path.parent / cam_name).read_text() if cam_name else ""
+    cam_name = cam_name or ""
     return upsert_breaker(session, name=breaker.name, tag=tag, breaker_file=text,
                           cam_file_name=Path(cam_name).name, cam_table=cam_text)
 
@@ -80,8 +81,10 @@ def breaker_model(row: BreakerRow):
         with tempfile.TemporaryDirectory(prefix="hvcb-breaker-") as tmp:
             text = row.breaker_file
             data = tomllib.loads(text)
-            (Path(tmp) / Path(data["cam"]["profile"]).name).write_text(row.cam_table)
-            text = text.replace(data["cam"]["profile"], Path(data["cam"]["profile"]).name)
+            cam = data.get("cam", {}).get("profile")  # none for an unknown design
+            if cam:
+                (Path(tmp) / Path(cam).name).write_text(row.cam_table)
+                text = text.replace(cam, Path(cam).name)
             (Path(tmp) / "breaker.toml").write_text(text)
             breaker = load_breaker(Path(tmp) / "breaker.toml")
         _breaker_cache[row.content_sha256] = breaker

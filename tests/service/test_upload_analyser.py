@@ -1,0 +1,58 @@
+"""An analyser export uploaded through the API and the web page: the same reader as the CLI,
+the chosen operation of a CO record stored, and the analyser's results on the operation page."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from tests.analyser.export_gen import Spec, export_text
+
+REPO = Path(__file__).resolve().parents[2]
+
+URL = "/api/v1/breakers/{}/captures"
+
+
+@pytest.fixture
+def generic(env):
+    from service.storage import crud
+
+    with env.Session() as s, s.begin():
+        row = crud.register_breaker_file(s, path=REPO / "config/breakers/generic-analyser.toml", tag="Q9")
+        return row.id
+
+
+def test_upload_co_record_stores_the_opening_and_page_shows_results(env, generic):
+    text, _ = export_text(Spec())
+    files = [("files", ("test-co.csv", text.encode()))]
+    r = env.client.post(URL.format(generic), headers=env.h("operator"), files=files, data={"operation": "open"})
+    assert r.status_code == 202, r.text
+    assert r.json()["operation"] == "open"
+    env.wait_fits(1)
+    op_id = r.json()["operation_id"]
+    op = env.client.get(f"/api/v1/operations/{op_id}", headers=env.h("reader")).json()
+    assert op["fit"]["status"] == "done", op["fit"]
+    from test_web_security import sign_in
+
+    sign_in(env.client, env.keys["reader"])
+    page = env.client.get(f"/operations/{op_id}")
+    assert page.status_code == 200
+    html = page.text
+    assert 'id="analyser-results"' in html and "contact travel" in html and "182" in html
+    assert "open rebound" in html and "1.5" in html and "TEST" in html  # the export's own figures
+
+
+def test_upload_co_record_without_operation_is_refused_in_words(env, generic):
+    text, _ = export_text(Spec())
+    r = env.client.post(URL.format(generic), headers=env.h("operator"), files=[("files", ("co.csv", text.encode()))])
+    assert r.status_code == 422
+    assert "holds C-O operations; say which to store with operation=open" in r.json()["detail"]
+
+
+def test_upload_bare_export_refused_in_words(env, generic):
+    text, _ = export_text(Spec(header=False))
+    r = env.client.post(URL.format(generic), headers=env.h("operator"), files=[("files", ("bare.csv", text.encode()))],
+                        data={"operation": "open"})
+    assert r.status_code == 422
+    assert "bare.csv: a bare analyser export" in r.json()["detail"]
