@@ -56,3 +56,31 @@ def test_upload_bare_export_refused_in_words(env, generic):
                         data={"operation": "open"})
     assert r.status_code == 422
     assert "bare.csv: a bare analyser export" in r.json()["detail"]
+
+
+def test_agent_replay_of_analyser_exports_hands_on_each_operation(tmp_path):
+    """An edge agent replaying analyser exports: every operation of each record is written as
+    COMTRADE (travel in rad) and handed on to the outbox like a triggered capture."""
+    from fleet_helpers import poll
+    from service.acquisition.capture_file import read_capture
+    from service.acquisition.daq_runner import DaqGroup, DaqRunner
+    from service.breaker_file import load_breaker
+    from service.settings import AcquisitionSettings
+
+    from tests.analyser.export_gen import write_export
+
+    b = load_breaker(REPO / "config/breakers/generic-analyser.toml")
+    write_export(tmp_path / "co.csv", Spec())
+    write_export(tmp_path / "oco.csv", Spec(sequence="O-CO", length_ms=700))
+    acq = AcquisitionSettings(driver="replay", breaker=b.name, name="analyser",
+                              replay={"files": [str(tmp_path / "co.csv"), str(tmp_path / "oco.csv")], "speed": None})
+    got = []
+    group = DaqGroup([DaqRunner(acq, b, tmp_path / "out", on_capture=lambda p, d: got.append((p, d.operation)))])
+    group.start()
+    try:
+        poll(lambda: group.states()[0].state == "finished", 60, "the analyser replay to finish")
+    finally:
+        group.stop()
+    assert [op for _, op in got] == ["close", "open", "open", "close", "open"]
+    cap = read_capture(got[1][0])
+    assert cap.travel.min() < 0.05 and cap.travel.max() > 0.95   # an opening, in rad from closed
