@@ -188,9 +188,26 @@ def record_to_capture(record: Record, *, source: str, travel_channel: str = "tra
     cap = Capture(travel=travel, sample_rate=float(record.sample_rate), vibration=vibration,
                   start_time=record_start_time(record), source=source,
                   travel_limits=_channel_limits(ch_t, TRAVEL_UNITS), vibration_limits=vib_limits,
-                  meta={"warnings": notes, "encoding": record.encoding})
+                  meta={"warnings": notes, "encoding": record.encoding, **_kept_meta(record.hdr_text)})
     check_finite(cap)
     return cap
+
+
+# What hvcb's own .hdr (service.acquisition.comtrade_writer) keeps of an analyser record that a
+# .cfg cannot say: the coil command (the fit's window start) and the analyser's header.
+_KEPT = ("command_s", "command_source", "motion_s", "analyser")
+
+
+def _kept_meta(hdr_text: str | None) -> dict:
+    if not hdr_text or not hdr_text.lstrip().startswith("{"):
+        return {}
+    import json
+
+    try:
+        meta = json.loads(hdr_text).get("meta")
+    except (ValueError, AttributeError):
+        return {}
+    return {k: meta[k] for k in _KEPT if isinstance(meta, dict) and k in meta}
 
 
 def _channel_limits(ch, table) -> tuple | None:

@@ -13,16 +13,16 @@ _CH_C = r"\((?P<ch>C\d+)\)"
 # separator columns and a trailing comma. Bare exports start at the velocity lines.
 TIMING_DCRM_26 = Profile(
     name="timing/DCRM analyser CSV (coil C1-C6, travel T1-T6, DCRM CH1-CH6)",
-    recognise=(r"Coil Current C\d+ \(A\)", r"Contact Travel T\d+ \(mm\)"),
+    recognise=(r"Coil\s*Current\s*C\d+\s*\(A\)", r"Contact\s*Travel\s*T\d+\s*\(mm\)"),
     columns=(
-        Column(r"Coil Current C(?P<n>\d+) \(A\)", COIL, "C{n}", "A"),
-        Column(r"Contact Travel T(?P<n>\d+) \(mm\)", TRAVEL, "T{n}", "mm"),
-        Column(r"DCRM Res CH(?P<n>\d+) in uOhm", RESISTANCE, "R{n}", "uOhm"),
-        Column(r"DCRM Current CH(?P<n>\d+) in Amp", DCRM_CURRENT, "I{n}", "A"),
+        Column(r"Coil\s*Current\s*C(?P<n>\d+)\s*\(A\)", COIL, "C{n}", "A"),
+        Column(r"Contact\s*Travel\s*T(?P<n>\d+)\s*\(mm\)", TRAVEL, "T{n}", "mm"),
+        Column(r"DCRM\s*Res\s*CH(?P<n>\d+)\s*in\s*(uOhm|µOhm|micro\s*Ohm)", RESISTANCE, "R{n}", "uOhm"),
+        Column(r"DCRM\s*Current\s*CH(?P<n>\d+)\s*in\s*Amps?", DCRM_CURRENT, "I{n}", "A"),
     ),
     # "kC": thousands of samples per second (the analyser's "kilo-conversions"), i.e. kS/s.
-    rate={r"Sampling Speed \(kC\)": 1e3, r"Sampling (Speed|Rate) \(kS/s\)": 1e3,
-          r"Sampling (Speed|Rate) \(Hz\)": 1.0},
+    rate={r"Sampling Speed ?\(kC\)": 1e3, r"Sampling (Speed|Rate) ?\(kS/s\)": 1e3,
+          r"Sampling (Speed|Rate) ?\(Hz\)": 1.0},
     metadata=(
         HeaderValue(r"Substation", "station"),
         HeaderValue(r"Bay", "bay"),

@@ -220,3 +220,14 @@ def test_bad_travel_section_refused(tmp_path):
 
     with pytest.raises(BreakerFileError, match=r"\[travel\] mm_per_rad must be a positive number"):
         load_breaker(tmp_path / "b.toml")
+
+
+def test_column_and_key_spacing_variants_are_read():
+    """Exports differ in spacing: 'Contact Travel T1(mm)', 'Sampling Speed(kC)', an extra column."""
+    text, _ = export_text(Spec())
+    text = text.replace("Contact Travel T", "Contact Travel  T").replace(" (mm),", "(mm),").replace(
+        "Sampling Speed (kC)", "Sampling Speed(kC)").replace("DCRM Current CH6 in Amp,", "DCRM Current CH6 in Amp,Aux A1,")
+    rec = parse_analyser(text, source="v.csv")
+    assert rec.sample_rate == 10_000 and rec.samples == 4000
+    assert [c.name for c in rec.wired("travel")] == ["T1"]
+    assert any("'Aux A1'" in w for w in rec.warnings)  # an unknown column is named, not guessed
