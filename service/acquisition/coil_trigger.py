@@ -27,9 +27,10 @@ DEPART = 0.02     # motion starts where the travel leaves its rest level by 2 % 
 # A coil counts as energised above 10 % of its range: the current of a DC coil rises within
 # about a millisecond to that level, long before the armature moves.
 COIL_LEVEL = 0.10
-# Coil-to-motion times of spring-operated HV breakers: opening time 15–60 ms and closing time
-# 40–150 ms (IEC 62271-100 type-test ranges as published in makers' data sheets); 0.25 s bounds
-# the search with room for slow mechanisms.
+# Coil-to-motion times of spring-operated HV breakers are tens of ms: makers' data sheets give
+# opening times of about 15–60 ms and closing times of about 40–150 ms (the times as IEC
+# 62271-100 defines them, command to contact separation/touch); 0.25 s bounds the search with
+# room for slow mechanisms.
 COIL_TO_MOTION_MAX_S = 0.25
 COMMAND_FROM_COIL = "command_from_coil"
 NO_COIL_COMMAND = "no_coil_command"

@@ -138,3 +138,19 @@ def test_acceptance_shared_co_record_detect_and_fit():
     close = subprocess.run(run + ["fit", str(EXAMPLE), "--breaker", GENERIC, "--operation", "close"],
                            capture_output=True, text=True, timeout=120, cwd=REPO)
     assert close.returncode != 0 and "no cam table" in close.stderr and "Traceback" not in close.stderr
+
+
+@pytest.mark.parametrize("alpha0", [0.5, 0.85])
+def test_alpha0_found_far_from_the_files_starting_guess(tmp_path, monkeypatch, alpha0):
+    """The unknown design's α0 comes from the curve, not from the file's 0.70."""
+    import dataclasses
+
+    from . import export_gen
+
+    base = export_gen.truth
+    monkeypatch.setattr(export_gen, "truth", lambda: (dataclasses.replace(base()[0], alpha0=alpha0), base()[1]))
+    cap, b, _ = _record(tmp_path)
+    r = fit_capture(cap, b, "open")
+    a = r.structure["alpha0"]
+    assert abs(a["value"] - alpha0) < 3 * a["stderr"] + 2e-3, a
+    assert r.rmse_rad < 1.3 * r.noise_rad
