@@ -51,7 +51,7 @@ def read_capture(path: str | Path, *, travel_channel: str = "travel", vibration_
     if suffix in (".cfg", ".cff", ".dat"):
         return read_comtrade(path, travel_channel=travel_channel, vibration_channel=vibration_channel,
                              encoding=encoding)
-    text, _ = read_csv_text(path, encoding=encoding) if suffix in (".csv", ".txt") else _sniff_text(path, encoding)
+    text, _ = read_csv_text(path, encoding=encoding) if suffix in (".csv", ".txt") else sniff_text(path, encoding)
     if text is not None and looks_like_analyser(text):
         return analyser_capture(text, source=str(path), travel_channel=travel_channel, rate=rate,
                                 to_rad=to_rad)
@@ -72,7 +72,7 @@ def load_capture_bytes(data: bytes, *, name: str, travel_channel: str = "travel"
     return parse_csv(text, source=source)
 
 
-def _sniff_text(path: Path, encoding: str | None):
+def sniff_text(path: Path, encoding: str | None):
     """(text, encoding) of a file with an unknown suffix when it decodes as text, else (None, None)."""
     try:
         data = path.read_bytes()[:4_000_000]

@@ -61,13 +61,13 @@ def _analyser_records(acq) -> list:
     if acq.driver != "replay":
         return []
     from drivers.analyser import looks_like_analyser
-    from drivers.capture_file import _sniff_text
+    from drivers.capture_file import sniff_text
 
     files = [Path(p) for p in acq.replay.files]
     for f in files:
         if f.suffix.lower() in (".cfg", ".cff", ".dat"):
             return []
-        text, _ = _sniff_text(f, None)
+        text, _ = sniff_text(f, None)
         if text is None or not looks_like_analyser(text):
             return []
     return files

@@ -68,9 +68,9 @@ def inspect_capture(path: str | Path, *, channels: dict | None = None, encoding:
     analyser = None
     if suffix not in (".cfg", ".cff", ".dat"):
         from drivers.analyser import looks_like_analyser
-        from drivers.capture_file import _sniff_text
+        from drivers.capture_file import sniff_text
 
-        text, enc = _sniff_text(path, encoding)
+        text, enc = sniff_text(path, encoding)
         if text is not None and looks_like_analyser(text):
             analyser = (text, enc)
     if analyser is not None:
