@@ -195,7 +195,7 @@ def record_to_capture(record: Record, *, source: str, travel_channel: str = "tra
 
 # What hvcb's own .hdr (service.acquisition.comtrade_writer) keeps of an analyser record that a
 # .cfg cannot say: the coil command (the fit's window start) and the analyser's header.
-_KEPT = ("command_s", "command_source", "motion_s", "analyser")
+_KEPT = ("command_s", "command_source", "motion_s", "analyser", "travel_map", "travel_channel", "travel_unit")
 
 
 def _kept_meta(hdr_text: str | None) -> dict:

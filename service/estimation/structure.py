@@ -108,11 +108,10 @@ def characteristics_in_record_unit(capture, operation: str, window: FitWindow, r
     info = capture.meta["travel_map"]
     name = capture.meta.get("travel_channel")
     chans = [a for a in capture.aux if a.kind == "travel" and a.name == name]
-    if not chans:
-        return {}
     from ..breaker_travel import mm_at
 
-    mm = np.asarray(chans[0].data, dtype=float)
+    # The travel as recorded; a stored capture keeps only rad, mapped back with the same points.
+    mm = np.asarray(chans[0].data if chans else mm_at(info, capture.travel), dtype=float)
     closed_mm = float(mm_at(info, 0.0))
     open_mm = float(mm_at(info, breaker.stroke))
     sign = 1.0 if open_mm > closed_mm else -1.0

@@ -41,6 +41,11 @@ def test_upload_co_record_stores_the_opening_and_page_shows_results(env, generic
     html = page.text
     assert 'id="analyser-results"' in html and "contact travel" in html and "182" in html
     assert "open rebound" in html and "1.5" in html and "TEST" in html  # the export's own figures
+    assert 'id="record-unit"' in html and "m/s" in html            # characteristics in mm and m/s
+    assert "alpha0" in html and "from the curve" in html           # the unknown design's α0
+    result = op["fit"].get("result") or {}
+    if result:  # the API shows the stored fit's own JSON: the stroke comes back in mm
+        assert result["characteristics_record"]["stroke_mm"] == pytest.approx(182.0)
 
 
 def test_upload_co_record_without_operation_is_refused_in_words(env, generic):
