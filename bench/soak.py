@@ -29,7 +29,6 @@ import argparse
 import asyncio
 import json
 import os
-import re
 import shutil
 import signal
 import socket
@@ -47,18 +46,10 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-REFERENCE = ROOT / "config" / "breakers" / "reference-252kV.toml"
+from soak_scenario import (DECOY_EVERY, FAULT_EVERY, FS, LATE_EVERY, BreakerScript,  # noqa: E402
+                           breaker_files, judge_alarms)
+
 ADMIN_KEY = "soak-bench-admin-key-" + uuid.uuid4().hex
-FS = 128_000.0
-DRIFTS = ({"role": "oil leak", "parameter": "DO", "direction": "falling"},
-          {"role": "spring relaxation", "parameter": "BO", "direction": "falling"})
-TOTAL_DRIFT = 0.15        # relative change of the drifting parameter by the end of the run [-]
-DRIFT_FROM = 0.6          # the drift starts after this fraction of a breaker's operations
-JITTER = 0.004            # operation-to-operation spread of every parameter [-]
-CLOSE_EVERY = 4           # a closing after every 4th opening
-DECOY_EVERY = 97          # one DAQ capture in ~97 is a decoy (shock or interference, no motion)
-FAULT_EVERY = 151         # one capture download in ~151 gets an exception response
-LATE_EVERY = 1999         # one in ~1999 gets a reply later than the driver's timeout
 
 
 def quiet_modbus() -> None:
@@ -78,80 +69,15 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
-# -- the scripted history ------------------------------------------------------------------------
-class BreakerScript:
-    """What one breaker's DAQ delivers: openings (with the breaker's drift), closings, decoys."""
-
-    def __init__(self, breaker, index: int, operations: int, seed: int):
-        self.breaker, self.index = breaker, index
-        self.drift = DRIFTS[index] if index < len(DRIFTS) else None
-        self.operations = operations
-        self.rng = np.random.default_rng(seed)
-        openings = int(np.ceil(operations * CLOSE_EVERY / (CLOSE_EVERY + 1)))
-        self.drift_start = int(openings * DRIFT_FROM)
-        self.drift_per_opening = TOTAL_DRIFT / max(1, openings - self.drift_start)
-        self._closings = None
-
-    def parameters(self, opening: int) -> dict:
-        p = dict(self.breaker.design_parameters())
-        for k in p:
-            p[k] *= 1.0 + self.rng.normal(0.0, JITTER)
-        if self.drift and opening >= self.drift_start:
-            sign = -1.0 if self.drift["direction"] == "falling" else 1.0
-            p[self.drift["parameter"]] *= 1.0 + sign * self.drift_per_opening * (opening - self.drift_start + 1)
-        return p
-
-    def closing_pool(self):
-        """Closings do not drift here; 24 of them are synthesised once (a closing costs 0.25 s)."""
-        from service.acquisition.synthetic import synthesize_capture
-
-        if self._closings is None:
-            self._closings = [synthesize_capture(self.breaker, "close", self.parameters(0), rng=self.rng)[0]
-                              for _ in range(24)]
-        return self._closings
-
-    def items(self):
-        """``(kind, travel, vibration)``: kind "open" | "close" | "decoy"; ``operations`` real ones."""
-        from service.acquisition.synthetic import synthesize_capture
-
-        opening = done = n = 0
-        while done < self.operations:
-            n += 1
-            if n % DECOY_EVERY == 0:
-                yield ("decoy",) + self.decoy(n)
-                continue
-            if done % (CLOSE_EVERY + 1) == CLOSE_EVERY:
-                cap = self.closing_pool()[int(self.rng.integers(24))]
-                yield "close", cap.travel, cap.vibration
-            else:
-                cap, _ = synthesize_capture(self.breaker, "open", self.parameters(opening), rng=self.rng)
-                opening += 1
-                yield "open", cap.travel, cap.vibration
-            done += 1
-
-    def decoy(self, n: int):
-        """A capture the DAQ took with no motion: a lone shock, or a burst of interference."""
-        samples = 12_000
-        rest = 0.0 if n % 2 else float(self.breaker.stroke)
-        travel = rest + self.rng.normal(0.0, 0.0015, samples)
-        vib = self.rng.normal(0.0, 0.6, samples)
-        t = np.arange(samples) / FS
-        if (n // DECOY_EVERY) % 2:
-            k = samples // 3
-            vib[k:] += 350.0 * np.exp(-(t[k:] - t[k]) / 0.6e-3) * np.sin(2 * np.pi * 2500.0 * (t[k:] - t[k]))
-        else:
-            a, b = samples // 4, samples // 4 + int(0.05 * FS)
-            vib[a:b] += self.rng.normal(0.0, 60.0, b - a)
-            travel[a:b] += self.rng.normal(0.0, 0.004, b - a)
-        return travel, vib
-
-
 # -- the DAQs ------------------------------------------------------------------------------------
 class Daqs:
     """One Modbus TCP DAQ emulator per breaker on an event loop thread, fed with backpressure."""
 
-    def __init__(self, scripts, pending_fits, max_pending: int):
+    def __init__(self, scripts, pending_fits, max_pending: int, *, fault_every: int = FAULT_EVERY,
+                 on_temperature=None):
         self.scripts, self.pending_fits, self.max_pending = scripts, pending_fits, max_pending
+        self.fault_every = fault_every
+        self.on_temperature = on_temperature  # (breaker name, °C) before each capture, or None
         self.emulators = []
         self.ports: list[int] = []
         self.handed: list[list[tuple]] = [[] for _ in scripts]  # (first_sample_index, n, kind, t_handed)
@@ -210,12 +136,14 @@ class Daqs:
             item = await asyncio.to_thread(next, items, None)
             if item is None:
                 return
-            kind, travel, vib = item
+            kind, travel, vib, temperature = item
             # the DAQ is free (last capture acknowledged) and the service is keeping up
             while not self._stop.is_set() and (em.stats.captures_acknowledged < added
                                                or self.pending_fits() >= self.max_pending):
                 await asyncio.sleep(0.005)
-            if added and added % FAULT_EVERY == 0:
+            if temperature is not None and self.on_temperature is not None:
+                await asyncio.to_thread(self.on_temperature, script.breaker.name, temperature)
+            if added and added % self.fault_every == 0:
                 em.inject_exception(at_read=int(rng.integers(2, 60)))
                 self.faults["exception_responses"] += 1
             if added and added % LATE_EVERY == 0:
@@ -229,20 +157,6 @@ class Daqs:
 
 
 # -- the service ---------------------------------------------------------------------------------
-def breaker_files(tmp: Path, n: int) -> list[Path]:
-    text = REFERENCE.read_text()
-    cam = REFERENCE.parent / "reference-252kV.cam.csv"
-    out = []
-    for i in range(n):
-        role = DRIFTS[i]["role"].replace(" ", "-") if i < len(DRIFTS) else "control"
-        name = f"soak{i + 1}-{role}"
-        p = tmp / f"{name}.toml"
-        p.write_text(re.sub(r'(?m)^name = ".*"$', f'name = "{name}"', text, count=1))
-        shutil.copy(cam, tmp / cam.name)
-        out.append(p)
-    return out
-
-
 def write_config(tmp: Path, files: list[Path], ports: list[int], args, database_url: str | None,
                  port: int) -> Path:
     from service.breaker_file import load_breaker
@@ -318,7 +232,6 @@ def db_bytes(url: str, engine, data_dir: Path) -> int:
 
 # -- the run -------------------------------------------------------------------------------------
 def main(argv=None) -> int:
-    global DECOY_EVERY, FAULT_EVERY
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--operations", type=int, default=200, help="real operations over all breakers")
     ap.add_argument("--breakers", type=int, default=4)
@@ -334,10 +247,12 @@ def main(argv=None) -> int:
     ap.add_argument("--decoy-every", type=int, default=DECOY_EVERY, help="one DAQ capture in N is a decoy")
     ap.add_argument("--fault-every", type=int, default=FAULT_EVERY,
                     help="one download in N gets an exception response")
+    ap.add_argument("--temperature", choices=("off", "given", "hidden"), default="off",
+                    help="seasonal temperature profile: off; on and reported to the service (SCADA writes "
+                         "it over REST before each operation); on but never reported")
     args = ap.parse_args(argv)
     quiet_modbus()
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))  # stop the service and workers too
-    DECOY_EVERY, FAULT_EVERY = args.decoy_every, args.fault_every
     if args.breakers < 1 or args.operations < args.breakers:
         ap.error("need at least one breaker and one operation per breaker")
 
@@ -351,18 +266,31 @@ def main(argv=None) -> int:
     files = breaker_files(tmp, args.breakers)
     per = [args.operations // args.breakers + (1 if i < args.operations % args.breakers else 0)
            for i in range(args.breakers)]
-    scripts = [BreakerScript(load_breaker(f), i, per[i], args.seed + i) for i, f in enumerate(files)]
+    scripts = [BreakerScript(load_breaker(f), i, per[i], args.seed + i, decoy_every=args.decoy_every,
+                             seasons=args.temperature != "off") for i, f in enumerate(files)]
     database_url, drop_db = (fresh_pg_database(args.database) if args.database else (None, None))
     url = database_url or f"sqlite:///{(tmp / 'data' / 'hvcb.sqlite3').resolve()}"
     engine = None
     procs: list[subprocess.Popen] = []
     state = {"pending": 0}
-    daqs = Daqs(scripts, lambda: state["pending"], args.max_pending)
+    service_url = {}
+
+    def report_temperature(breaker: str, celsius: float) -> None:
+        import httpx
+
+        r = httpx.put(f"{service_url['base']}/api/v1/breakers/{breaker}/temperature",
+                      json={"temperature_c": round(celsius, 2)}, headers={"X-API-Key": ADMIN_KEY}, timeout=30)
+        if r.status_code >= 300:
+            raise RuntimeError(f"the service refused the temperature of {breaker}: {r.status_code} {r.text[:200]}")
+
+    daqs = Daqs(scripts, lambda: state["pending"], args.max_pending, fault_every=args.fault_every,
+                on_temperature=report_temperature if args.temperature == "given" else None)
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     t_start = time.monotonic()
     try:
         ports = daqs.start()
         port = free_port()
+        service_url["base"] = f"http://127.0.0.1:{port}"
         cfg = write_config(tmp, files, ports, args, database_url, port)
         service_log = open(tmp / "service.log", "w")
         service = subprocess.Popen([sys.executable, "-m", "service.cli", "serve", "--config", str(cfg)],
@@ -438,6 +366,7 @@ def main(argv=None) -> int:
             "operations_requested": args.operations, "breakers": args.breakers,
             "database": "postgresql" if database_url else "sqlite",
             "executor": "celery" if args.celery else "local", "fit_workers": args.workers,
+            "temperature": args.temperature,
             "rss_mb_after_warmup": round(warm["rss"] or 0.0, 1), "rss_mb_end": round(rss_end, 1),
             "rss_workers_mb_after_warmup": round(warm["workers"] or 0.0, 1),
             "rss_workers_mb_end": round(workers_end, 1),
@@ -539,18 +468,6 @@ def analyse(engine, url: str, tmp: Path, scripts, daqs: Daqs, per: list[int]) ->
     tenth = max(1, len(steady) // 10)
     first = [d for _, d in steady[:tenth]]
     last = [d for _, d in steady[-tenth:]]
-    drifted = {s.breaker.name for s in scripts if s.drift}
-    raised: dict[str, list] = {n: [] for n in breakers}
-    scripted_drift = {s.breaker.name: (s.drift["parameter"], s.drift["direction"]) for s in scripts if s.drift}
-    false_alarms = []
-    for breaker_id, parameter, level, st, evidence, op_id in alarms:
-        name = names[breaker_id]
-        direction = (evidence or {}).get("drift_direction")
-        text = f"{parameter} {direction} {level} ({st}) at operation {op_id}"
-        raised[name].append(text)
-        if scripted_drift.get(name) != (parameter, direction):
-            false_alarms.append({"breaker": name, "alarm": text})
-    expected_ok = all(any(a.startswith(f"{p} {d} alarm") for a in raised[n]) for n, (p, d) in scripted_drift.items())
     n_ops = len(ops)
     fits_done = sum(1 for o in ops if o.status == "done")
     p95 = (lambda v: round(float(np.percentile(v, 95)), 3) if v else None)
@@ -566,12 +483,7 @@ def analyse(engine, url: str, tmp: Path, scripts, daqs: Daqs, per: list[int]) ->
         "fit_visible_p95_ratio_last_first": round(p95(last) / p95(first), 3) if first and last else None,
         "fit_visible_warmup_operations_excluded": warmup,
         "fit_visible_p95_s_warmup": p95([d for _, d in latency[:warmup]]),
-        "alarms_expected": len(drifted), "alarms_raised": sum(len(v) for v in raised.values()),
-        "alarms_by_breaker": raised, "every_drift_alarmed": expected_ok,
-        "control_breakers_alarmed": sum(1 for n, v in raised.items() if n not in drifted and v),
-        "control_breakers_alarm_level": sum(1 for n, v in raised.items()
-                                            if n not in drifted and any(" alarm (" in a for a in v)),
-        "false_alarms": false_alarms,
+        **judge_alarms(scripts, alarms, names),
     }
 
 

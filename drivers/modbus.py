@@ -22,6 +22,7 @@ from pymodbus.exceptions import ModbusException
 
 from . import modbus_map as mm
 from .errors import CaptureDownloadError
+from .backoff import Backoff
 from .interface import DriverStats, SampleBlock
 from .pymodbus_logging import quiet_pymodbus
 from .scaling import ChannelScaling
@@ -122,7 +123,7 @@ class ModbusCaptureDriver:
         self._delivered = None  # (capture id, first index, crc) of the last capture yielded
         self._unreleased: mm.CaptureHeader | None = None  # yielded, not yet acknowledged
         self._ever_connected = False
-        self._backoff = settings.reconnect_min_s
+        self._backoff = Backoff(settings.reconnect_min_s, settings.reconnect_max_s)
 
     def __aiter__(self):
         return self
@@ -182,14 +183,13 @@ class ModbusCaptureDriver:
             if self._ever_connected:
                 self.stats.reconnects += 1
             self._ever_connected = True
-            self._backoff = self.settings.reconnect_min_s
+            self._backoff.reset()
             self.stats.connected = True
             log.info("Modbus DAQ %s: connected", self.settings.where)
             return True
-        log.warning("Modbus DAQ %s: cannot connect; next attempt in %.1f s", self.settings.where,
-                    self._backoff)
-        await self._sleep(self._backoff)
-        self._backoff = min(2 * self._backoff, self.settings.reconnect_max_s)
+        wait = self._backoff.next()
+        log.warning("Modbus DAQ %s: cannot connect; next attempt in %.1f s", self.settings.where, wait)
+        await self._sleep(wait)
         return False
 
     async def _read(self, address: int, count: int) -> list[int]:

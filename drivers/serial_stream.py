@@ -18,6 +18,7 @@ import numpy as np
 import serial
 
 from .errors import DriverError
+from .backoff import Backoff
 from .interface import DriverStats, SampleBlock
 from .scaling import ChannelScaling
 from .serial_frame import MAX_FRAME_SAMPLES, Frame, FrameDecoder
@@ -152,7 +153,7 @@ class SerialStreamDriver:
 
     def _run(self) -> None:
         s = self.settings
-        delay = s.reconnect_min_s
+        backoff = Backoff(s.reconnect_min_s, s.reconnect_max_s)
         opened_before = False
         failing = False
         while not self._stop.is_set():
@@ -165,11 +166,10 @@ class SerialStreamDriver:
                 if not failing:
                     log.warning("serial DAQ %s: cannot open (%s); retrying with backoff", s.url, exc)
                     failing = True
-                self._stop.wait(delay)
-                delay = min(2 * delay, s.reconnect_max_s)
+                self._stop.wait(backoff.next())
                 continue
             failing = False
-            delay = s.reconnect_min_s
+            backoff.reset()
             if opened_before:
                 self.stats.reconnects += 1
             opened_before = True
@@ -191,7 +191,7 @@ class SerialStreamDriver:
                     port.close()
                 except Exception:  # closing a dead port may fail too; nothing to recover
                     pass
-            self._stop.wait(delay)
+            self._stop.wait(backoff.next())
         self._signal()
 
     def _handle(self, data: bytes) -> None:

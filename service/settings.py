@@ -180,10 +180,11 @@ class Settings(BaseSettings):
     stale_after_s: float = Field(7 * 24 * 3600.0, gt=0, description="older parameters are quality bad")
     daq_timeout_s: float = Field(30.0, gt=0, description="no DAQ heartbeat for this long: DAQ down")
     spool_retry_s: float = Field(2.0, gt=0, description="how often spooled captures are retried")
+    fit_lease_s: float = Field(300.0, ge=10, description="a fit `running` this long has lost its worker "
+                               "and is queued again (a fit takes seconds; docs/operations.md)")
     fit_seed: int = 1
     fit_function: str = Field("service.estimation:fit_capture",
                               description="module:function used by fit jobs (tests inject failures here)")
-    curve_points: int = Field(2000, ge=50, le=20000, description="fitted-curve points kept per fit")
     celery_visibility_timeout_s: int = Field(600, ge=10, description="Redis: an unacknowledged task whose "
                                              "worker machine vanished is redelivered after this long")
     celery_queue: str = Field("hvcb", min_length=1, max_length=100, pattern=r"^[A-Za-z0-9_.:-]+$",

@@ -21,6 +21,8 @@ from dataclasses import asdict, dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
 
+from drivers.backoff import Backoff
+
 log = logging.getLogger("hvcb.daq")
 
 STATES = ("starting", "running", "retrying", "finished", "stopped")
@@ -201,7 +203,7 @@ class DaqRunner:
 
     async def _supervise(self) -> None:
         acq = self.acq
-        backoff = acq.retry_min_s
+        backoff = Backoff(acq.retry_min_s, acq.retry_max_s)
         run_no = 0
         while not self._stop.is_set():
             run_no += 1
@@ -210,9 +212,8 @@ class DaqRunner:
                 return
             productive, error = outcome
             if productive:
-                backoff = acq.retry_min_s
-            wait = backoff
-            backoff = min(2 * backoff, acq.retry_max_s)
+                backoff.reset()
+            wait = backoff.next()
             with self._lock:
                 restarts = self._state.restarts + 1
             self._set(state="retrying", error=error, restarts=restarts,

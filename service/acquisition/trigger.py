@@ -255,16 +255,21 @@ class TriggerDetector:
             out += self._process(final=False)
         return out
 
-    def flush(self) -> list[DetectedOperation]:
-        """Judge what is pending with the data there is (end of stream)."""
+    def flush(self, *, record: bool = False) -> list[DetectedOperation]:
+        """Judge what is pending with the data there is (end of stream).
+
+        ``record``: the data was one whole recording (a file, a DAQ-triggered capture), whose
+        end is the recorder's choice, not lost samples: a capture window that runs past it is
+        cut there without the ``incomplete`` flag, as long as the operation itself ended inside.
+        """
         if self._expected is None:
             return []
-        out = self._process(final=True)
+        out = self._process(final=True, record=record)
         self._pending = None
         self._scan = self.ring.end
         return out
 
-    def _process(self, *, final: bool) -> list[DetectedOperation]:
+    def _process(self, *, final: bool, record: bool = False) -> list[DetectedOperation]:
         out = []
         thr = self.settings.shock_threshold_g
         while True:
@@ -276,14 +281,14 @@ class TriggerDetector:
                 self._pending = self._scan = hit
             if not final and self.ring.end < self._pending + self.horizon_n:
                 return out  # wait for the whole operation
-            detected, resume = self._judge(self._pending, final=final)
+            detected, resume = self._judge(self._pending, final=final, record=record)
             if detected is not None:
                 out.append(detected)
             self._pending, self._scan = None, max(resume, self._pending + 1)
 
     # -- judging one candidate shock ------------------------------------------------------------
 
-    def _judge(self, shock: int, *, final: bool):
+    def _judge(self, shock: int, *, final: bool, record: bool = False):
         """Decide whether the shock at stream index ``shock`` starts an operation.
 
         Returns (DetectedOperation or None, stream index to resume the shock search from).
@@ -336,7 +341,9 @@ class TriggerDetector:
         start = max(0, k - self.pre_n)
         if k < self.pre_n // 2:  # a little less than asked is normal for recorded files
             flags.append(SHORT_PRETRIGGER)
-        if stop > T.size or (final and arrived.size == 0):
+        # `incomplete` means samples are missing: the data ended before the operation did, a
+        # live stream ended inside the capture window, or (below) a gap lies inside it.
+        if (final and arrived.size == 0) or (stop > T.size and not record):
             flags.append(INCOMPLETE)
         stop = min(stop, T.size)
         if not M[start:stop].all() and INCOMPLETE not in flags:
@@ -429,7 +436,7 @@ def detect_capture(capture: Capture, settings: TriggerSettings, *, block_samples
                                            capture.vibration[i:i + block_samples], capture.sample_rate))
         if on_progress is not None:
             on_progress(min(block_samples, capture.travel.size - i))
-    found += detector.flush()
+    found += detector.flush(record=True)
     if capture.start_time is not None:
         found = [_with_start_time(op, capture) for op in found]
     return found

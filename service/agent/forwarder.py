@@ -18,6 +18,8 @@ from pathlib import Path
 
 import httpx
 
+from drivers.backoff import Backoff
+
 from .outbox import Outbox, OutboxEntry
 
 log = logging.getLogger("hvcb.agent.forward")
@@ -56,7 +58,7 @@ class Forwarder:
 
     # -- the loop ------------------------------------------------------------------------------
     def _run(self) -> None:
-        backoff = self.central.retry_min_s
+        backoff = Backoff(self.central.retry_min_s, self.central.retry_max_s)
         while not self._stop.is_set():
             entry = self.outbox.oldest()
             if entry is None:
@@ -65,10 +67,9 @@ class Forwarder:
                 continue
             outcome = self.send(entry)
             if outcome == "retry":
-                self._stop.wait(backoff)
-                backoff = min(2 * backoff, self.central.retry_max_s)
+                self._stop.wait(backoff.next())
             else:
-                backoff = self.central.retry_min_s
+                backoff.reset()
 
     def send(self, entry: OutboxEntry) -> str:
         """One attempt at ``entry``: "sent", "rejected" or "retry"."""

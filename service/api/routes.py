@@ -19,7 +19,8 @@ from sqlalchemy.exc import IntegrityError
 
 from drivers.capture import CaptureError
 from service.storage import crud
-from service.storage.models import utcnow
+from service.storage.fit_curve import fit_curve
+from service.storage.models import BreakerRow, utcnow
 
 from . import schemas as s
 from .deps import AdminDep, MonitorDep, OperatorDep, ReaderDep, SessionDep, SettingsDep, UploaderDep
@@ -221,8 +222,9 @@ def get_curve(operation_id: OperationId, session: SessionDep, _: ReaderDep,
     t, measured = cap.t[idx], cap.travel[idx]
     fitted = residual = window = None
     fit = op.fit
-    if fit is not None and fit.status == "done" and fit.curve:
-        ft, fv = np.asarray(fit.curve["t"]), np.asarray(fit.curve["fitted"])
+    curve = fit_curve(fit, cap.t, crud.breaker_model(session.get(BreakerRow, op.breaker_id))) if fit is not None else None
+    if curve is not None:
+        ft, fv = curve
         inside = (t >= ft[0]) & (t <= ft[-1])
         f = np.where(inside, np.interp(t, ft, fv), np.nan)
         fitted = [None if not np.isfinite(v) else round(float(v), 7) for v in f]

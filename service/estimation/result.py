@@ -133,17 +133,47 @@ class FitResult:
         Before the onset of motion the model is at rest; the curve is the model's, also beyond
         the valid interval.
         """
-        from .curves import ClosingCurves, OpeningCurves
+        return fitted_travel(self.operation, self.parameters, self.window_s[0], self.onset_delay_s,
+                             capture.t, breaker, dc_used=self.dc_used,
+                             alpha0=self.structure.get("alpha0", {}).get("value"))
 
-        t = capture.t - self.window_s[0]
-        if self.operation == "open":
-            x = [self.parameters[k] for k in ("AO", "BO", "DO", "EO")] + [self.onset_delay_s]
-            if "alpha0" in self.structure:
-                import dataclasses
 
-                breaker = dataclasses.replace(breaker, alpha0=self.structure["alpha0"]["value"])
-            theta = OpeningCurves.at(t, x, breaker)
-        else:
-            x = [self.parameters[k] for k in ("AC", "BC", "CC")] + [self.onset_delay_s]
-            theta = ClosingCurves.at(t, x, breaker, self.dc_used)
-        return travel_from_coordinate(theta, self.operation, breaker.stroke)
+def fitted_travel(operation: str, parameters: dict, window_start_s: float, onset_delay_s: float,
+                  t: np.ndarray, breaker: Breaker, *, dc_used: float | None = None,
+                  alpha0: float | None = None) -> np.ndarray:
+    """The model curve of a stored fit, rebuilt from its parameters (nothing else is stored).
+
+    Parameters
+    ----------
+    operation : {"open", "close"}
+    parameters : dict
+        AO, BO, DO, EO [s^-2, s^-1] or AC [s^-2], BC [-], CC [s^-2].
+    window_start_s, onset_delay_s : float
+        The fit's valid-interval start and onset delay [s].
+    t : ndarray
+        Times from the capture's first sample [s].
+    breaker : Breaker
+    dc_used : float, optional
+        The closing's opening-spring factor DC [s^-2].
+    alpha0 : float, optional
+        Buffer engagement [rad] an unknown design's fit estimated (``structure``); else the
+        breaker file's.
+
+    Returns
+    -------
+    ndarray : travel [rad from closed] at ``t``.
+    """
+    from .curves import ClosingCurves, OpeningCurves
+
+    t = np.asarray(t, dtype=float) - window_start_s
+    if operation == "open":
+        x = [parameters[k] for k in ("AO", "BO", "DO", "EO")] + [onset_delay_s]
+        if alpha0 is not None:
+            import dataclasses
+
+            breaker = dataclasses.replace(breaker, alpha0=float(alpha0))
+        theta = OpeningCurves.at(t, x, breaker)
+    else:
+        x = [parameters[k] for k in ("AC", "BC", "CC")] + [onset_delay_s]
+        theta = ClosingCurves.at(t, x, breaker, dc_used)
+    return travel_from_coordinate(theta, operation, breaker.stroke)

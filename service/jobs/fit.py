@@ -35,14 +35,13 @@ class JobOptions:
     fit_function: str = "service.estimation:fit_capture"
     fit_seed: int = 1
     max_attempts: int = 3
-    curve_points: int = 2000
     alarms: dict | None = None
 
     @classmethod
     def from_settings(cls, settings) -> "JobOptions":
         return cls(database_url=settings.sqlalchemy_url, fit_function=settings.fit_function,
                    fit_seed=settings.fit_seed, max_attempts=settings.max_attempts,
-                   curve_points=settings.curve_points, alarms=dict(settings.alarms))
+                   alarms=dict(settings.alarms))
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -165,13 +164,9 @@ def _fit(capture_path: str, expected_sha: str, breaker, kind: str, dc, options: 
     extra = {"prior": prior} if prior is not None and _accepts_prior(fit_capture) else {}
     result = fit_capture(capture, breaker, kind, dc=dc, seed=options.fit_seed, **extra)
     out = result.to_dict() if hasattr(result, "to_dict") else dict(result)
-    curve = None
-    if hasattr(result, "fitted_travel"):
-        fitted = np.asarray(result.fitted_travel(capture, breaker), dtype=float)
-        idx = np.unique(np.linspace(0, fitted.size - 1, min(options.curve_points, fitted.size)).astype(int))
-        curve = {"t": np.round(capture.t[idx], 9).tolist(),
-                 "fitted": np.round(fitted[idx], 7).tolist()}
-    return _jsonable(out), curve
+    # No curve is stored: it is rebuilt from the parameters when shown (service.storage.fit_curve),
+    # which keeps the database at a few kB per operation.
+    return _jsonable(out), None
 
 
 def _jsonable(obj):

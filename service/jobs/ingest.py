@@ -11,8 +11,9 @@ from __future__ import annotations
 
 import logging
 import threading
+import time
 from dataclasses import dataclass
-from datetime import datetime, timezone
+from datetime import datetime, timedelta, timezone
 from pathlib import Path
 
 from sqlalchemy.exc import DBAPIError, IntegrityError, OperationalError
@@ -164,12 +165,31 @@ class Monitor:
                 stored += 1
         return stored
 
+    def requeue_stale(self) -> int:
+        """Queue again the fits left `running` longer than the lease (their worker is gone)."""
+        cutoff = datetime.now(timezone.utc) - timedelta(seconds=self.settings.fit_lease_s)
+        try:
+            with self.Session() as session, session.begin():
+                stale = crud.requeue_stale_fits(session, older_than=cutoff)
+        except (OperationalError, DBAPIError):
+            return 0  # the spool thread notices the outage; the next sweep tries again
+        for op_id in stale:
+            log.warning("fit of operation %d was running for over %.0f s: its worker is gone; queued again",
+                        op_id, self.settings.fit_lease_s)
+            self.executor.submit(op_id)
+        return len(stale)
+
     def _spool_loop(self) -> None:
+        # The stale-fit sweep needs no finer grain than a tenth of the lease.
+        sweep_every, last_sweep = self.settings.fit_lease_s / 10.0, time.monotonic()
         while not self._stop.is_set():
             self._wake.wait(self.settings.spool_retry_s)
             self._wake.clear()
             if self._stop.is_set():
                 return
+            if time.monotonic() - last_sweep >= sweep_every:
+                last_sweep = time.monotonic()
+                self.requeue_stale()
             if len(self.spool):
                 try:
                     self.drain_spool()

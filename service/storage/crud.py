@@ -138,6 +138,18 @@ def queue_depth(session: Session) -> int:
                               .where(FitRow.status.in_(("queued", "running")))) or 0)
 
 
+def requeue_stale_fits(session: Session, *, older_than) -> list[int]:
+    """Fits still `running` since before ``older_than``: their worker died without a word (a lost
+    machine, a task that exhausted its retries). They go back to `queued`; returns their operations."""
+    stale = list(session.scalars(select(FitRow.operation_id)
+                                 .where(FitRow.status == "running", FitRow.started_at < older_than)))
+    if stale:
+        session.execute(update(FitRow).where(FitRow.operation_id.in_(stale), FitRow.status == "running",
+                                             FitRow.started_at < older_than)
+                        .values(status="queued", queued_at=utcnow()))
+    return stale
+
+
 def claim_fit(session: Session, *, operation_id: int, worker: str) -> FitRow | None:
     """Mark the fit running (one more attempt). None when it is already done or failed."""
     res = session.execute(update(FitRow)

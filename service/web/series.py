@@ -17,6 +17,7 @@ import numpy as np
 
 from service.alarms import drift
 from service.mechanics.coordinates import operation_coordinate
+from service.storage.fit_curve import fit_curve
 
 CHARACTERISTICS = (("operating_time_s", "operating time", "ms", 1e3),
                    ("average_speed_rad_s", "average speed", "rad/s", 1.0),
@@ -174,8 +175,9 @@ def operation_curves(capture, fit, breaker, *, vibration_buckets: int = 2000) ->
         vt, vlo, vhi = minmax_buckets(t, capture.vibration, vibration_buckets)
         out["vibration"] = {"t": [round(v, 7) for v in vt], "min": [round(v, 3) for v in vlo],
                             "max": [round(v, 3) for v in vhi], "buckets": len(vt)}
-    if fit is not None and fit.status == "done" and fit.curve and fit.window_start_s is not None:
-        ft, fv = np.asarray(fit.curve["t"], float), np.asarray(fit.curve["fitted"], float)
+    curve = fit_curve(fit, t, breaker)
+    if curve is not None and fit.window_start_s is not None:
+        ft, fv = curve
         w0, w1 = float(fit.window_start_s), float(fit.window_end_s)
         inside = (t >= max(ft[0], w0)) & (t <= min(ft[-1], w1))
         fitted = np.where(inside, np.interp(t, ft, fv), np.nan)

@@ -18,10 +18,18 @@ import os
 from functools import lru_cache
 
 from celery import Celery
+from sqlalchemy.exc import InterfaceError, OperationalError
 
 from service.jobs.fit import JobOptions, run_fit_job
 
 TASK_NAME = "hvcb.fit"
+
+# A database that drops out for a moment (failover, restart, network) fails the task with one of
+# these. The job is idempotent (claim and store only touch an unfinished fit), so it is retried:
+# delays doubling from 2 s to at most 60 s with full jitter, 8 times (~5 minutes in all). A longer
+# outage leaves the fit `running`; the service's stale-fit sweep queues it again after the lease.
+TRANSIENT_RETRY = dict(autoretry_for=(OperationalError, InterfaceError), retry_backoff=2,
+                       retry_backoff_max=60, retry_jitter=True, max_retries=8)
 
 
 def make_celery(broker_url: str, *, queue: str = "hvcb", key_prefix: str = "",
@@ -51,11 +59,11 @@ def make_celery(broker_url: str, *, queue: str = "hvcb", key_prefix: str = "",
     )
     fixed = options.to_dict() if options is not None else None
 
-    @app.task(name=TASK_NAME, acks_late=True, reject_on_worker_lost=True)
+    @app.task(name=TASK_NAME, acks_late=True, reject_on_worker_lost=True, **TRANSIENT_RETRY)
     def fit_task(operation_id: int):
         return run_fit_job(int(operation_id), fixed if fixed is not None else worker_options())
 
-    @app.task(name="hvcb.refit_batch", acks_late=True, reject_on_worker_lost=True)
+    @app.task(name="hvcb.refit_batch", acks_late=True, reject_on_worker_lost=True, **TRANSIENT_RETRY)
     def refit_batch_task(run_id: int, operation_ids: list):
         # A batch of one breaker's stored operations (``hvcb refit``); idempotent like the fit.
         from service.refit.batch import refit_batch

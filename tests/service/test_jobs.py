@@ -190,3 +190,63 @@ def test_unreachable_database_captures_spooled_then_stored(tmp_path, db_url, bre
         monitor.stop()
         down.dispose()
         good.dispose()
+
+
+def test_a_fit_left_running_by_a_dead_worker_is_queued_again_without_a_restart(stack, breaker):
+    """A worker machine that vanished leaves its fit `running`; the sweep hands it on after the lease."""
+    from datetime import datetime, timedelta, timezone
+
+    from sqlalchemy import delete, update
+
+    from service.storage.models import ParameterValueRow
+
+    monitor, Session, settings = stack(fit_lease_s=60.0)
+    monitor.executor.start()
+    ops = [monitor.ingest(synth(breaker, "open", 40 + i), breaker_id=1, operation="open").operation_id
+           for i in range(2)]
+    _wait(Session, 2)
+    now = datetime.now(timezone.utc)
+    with Session() as s, s.begin():  # op 0 as a dead worker left it; op 1 is a fresh, live claim
+        s.execute(delete(ParameterValueRow).where(ParameterValueRow.operation_id == ops[0]))
+        s.execute(update(FitRow).where(FitRow.operation_id == ops[0])
+                  .values(status="running", attempts=1, started_at=now - timedelta(seconds=61)))
+        s.execute(update(FitRow).where(FitRow.operation_id == ops[1])
+                  .values(status="running", attempts=1, started_at=now - timedelta(seconds=5)))
+    assert monitor.requeue_stale() == 1
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        with Session() as s:
+            fit = s.scalar(select(FitRow).where(FitRow.operation_id == ops[0]))
+        if fit.status == "done":
+            break
+        time.sleep(0.05)
+    assert fit.status == "done" and fit.attempts == 2
+    with Session() as s:
+        live = s.scalar(select(FitRow).where(FitRow.operation_id == ops[1]))
+        assert live.status == "running" and live.attempts == 1  # within its lease: left alone
+    assert monitor.requeue_stale() == 0
+
+
+def test_the_fitted_curve_is_rebuilt_from_the_parameters_not_stored(stack, breaker):
+    """A few kB per operation: the fits row keeps the parameters, the curve is recomputed."""
+    from service.estimation import fit_capture
+    from service.storage.fit_curve import fit_curve
+
+    monitor, Session, settings = stack()
+    monitor.executor.start()
+    cap = synth(breaker, "open", 91)
+    op_id = monitor.ingest(cap, breaker_id=1, operation="open").operation_id
+    (row,) = _wait(Session, 1)
+    assert row.status == "done" and row.curve is None
+    from service.acquisition.capture_file import read_capture
+
+    with Session() as s:
+        stored = read_capture(s.get(OperationRow, op_id).capture_path)  # what the job fitted
+    t, fitted = fit_curve(row, stored.t, breaker)
+    assert np.array_equal(t, stored.t)
+    # The rebuilt curve is the one the fit scored: its RMSE over the window is the stored one.
+    w = (stored.t >= row.window_start_s) & (stored.t <= row.window_end_s)
+    assert np.sqrt(np.mean((fitted[w] - stored.travel[w]) ** 2)) == pytest.approx(row.rmse_rad, rel=1e-3)
+    # ... and an independent fit of the same capture draws the same curve to well within the noise.
+    direct = fit_capture(stored, breaker, "open", seed=settings.fit_seed).fitted_travel(stored, breaker)
+    assert np.max(np.abs(fitted - direct)[w]) < 0.2 * row.noise_rad
