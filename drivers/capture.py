@@ -12,6 +12,31 @@ class CaptureError(ValueError):
     """A capture cannot be used: the message says why, for an engineer."""
 
 
+class ChannelName(str):
+    """A channel name that may carry how the breaker maps a travel recorded in a length (a
+    breaker analyser's contact travel in mm) to ours: ``to_rad(values, unit, stated_stroke)``
+    returns ``(travel [rad from closed], info)`` with ``info`` JSON-able. The breaker file's
+    ``[travel]`` section builds it (``service.travel_map``); a plain ``str`` carries none."""
+
+    to_rad = None
+
+    def __new__(cls, name: str, to_rad=None):
+        obj = super().__new__(cls, name)
+        obj.to_rad = to_rad
+        return obj
+
+
+@dataclass(frozen=True)
+class AuxChannel:
+    """A recorded channel besides travel and vibration, in its own unit: a coil current [A], a
+    contact travel [mm] as recorded, a dynamic contact resistance [µΩ] or its test current [A]."""
+
+    name: str
+    kind: str
+    unit: str
+    data: np.ndarray
+
+
 @dataclass(frozen=True)
 class Capture:
     """Uniformly sampled travel (and optionally vibration) of one recording.
@@ -36,6 +61,11 @@ class Capture:
         The travel channel's representable range [rad], for saturation checks.
     vibration_limits : tuple of float or None
         The vibration channel's representable range [g].
+    meta : dict
+        JSON-able notes: ``warnings``, and for analyser exports ``analyser`` (profile, header
+        metadata, the analyser's own results) and ``travel_map``.
+    aux : tuple of AuxChannel
+        Other wired channels (coil currents, the travel as recorded, DCRM), sample-aligned.
     """
 
     travel: np.ndarray
@@ -48,6 +78,11 @@ class Capture:
     travel_limits: tuple | None = None
     vibration_limits: tuple | None = None
     meta: dict = field(default_factory=dict)
+    aux: tuple = ()
+
+    def aux_of(self, kind: str) -> list:
+        """The auxiliary channels of one kind (``coil_current``, ``travel`` ...)."""
+        return [a for a in self.aux if a.kind == kind]
 
     @property
     def t(self) -> np.ndarray:

@@ -1,5 +1,7 @@
 """Capture files to ``Capture``: COMTRADE (``.cfg``+``.dat`` or ``.cff``, through the tolerant
-reader in ``drivers.comtrade``) and CSV ``t_s,travel_rad[,vibration_g]``.
+reader in ``drivers.comtrade``), breaker-analyser exports (``drivers.analyser``, recognised by
+content) and CSV ``t_s,travel_rad[,vibration_g]``. This module is the one entry point: the CLI,
+uploads, the jobs and the agent all read captures through it.
 
 Outside names and units become ours here: the travel channel in rad, the vibration in g. What
 the reader had to repair travels along in ``Capture.meta["warnings"]``.
@@ -13,7 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from drivers.capture import Capture, CaptureError
+from drivers.capture import AuxChannel, Capture, CaptureError
+from drivers.analyser import TRAVEL, looks_like_analyser, parse_analyser
 from drivers.comtrade import Record, decode_text, read_cff_bytes, read_record, read_record_bytes
 
 # Unit spellings accepted per quantity, with the factor to our unit.
@@ -30,9 +33,16 @@ MAX_SAMPLES = 50_000_000
 
 
 def read_capture(path: str | Path, *, travel_channel: str = "travel", vibration_channel: str = "vibration",
-                 encoding: str | None = None, temperature_channel: str | None = None) -> Capture:
-    """Read a COMTRADE ``.cfg`` (with its ``.dat``), a ``.dat``, a ``.cff``, or a CSV
-    ``t_s,travel_rad[,vibration_g]``.
+                 encoding: str | None = None, temperature_channel: str | None = None,
+                 rate: float | None = None, to_rad=None) -> Capture:
+    """Read a COMTRADE ``.cfg`` (with its ``.dat``), a ``.dat``, a ``.cff``, a breaker-analyser
+    export, or a CSV ``t_s,travel_rad[,vibration_g]``.
+
+    ``temperature_channel``: a COMTRADE channel with the ambient or mechanism temperature [C or
+    K]; its median goes into ``meta["temperature_c"]``. ``rate`` [Hz] is the sampling rate of a
+    bare analyser export (one without a header stating it). ``to_rad`` maps a travel recorded in
+    mm to ours (see ``drivers.capture.ChannelName``); by default the one ``travel_channel``
+    carries, when it is a breaker's ``ChannelName``.
 
     Raises
     ------
@@ -49,9 +59,86 @@ def read_capture(path: str | Path, *, travel_channel: str = "travel", vibration_
     if suffix in (".cfg", ".cff", ".dat"):
         return read_comtrade(path, travel_channel=travel_channel, vibration_channel=vibration_channel,
                              encoding=encoding, temperature_channel=temperature_channel)
+    text, _ = read_csv_text(path, encoding=encoding) if suffix in (".csv", ".txt") else sniff_text(path, encoding)
+    if text is not None and looks_like_analyser(text):
+        return analyser_capture(text, source=str(path), travel_channel=travel_channel, rate=rate,
+                                to_rad=to_rad)
     if suffix in (".csv", ".txt"):
-        return read_csv(path, encoding=encoding)
-    raise CaptureError(f"{path}: unknown capture format '{path.suffix}'; give a COMTRADE .cfg/.cff or a .csv")
+        return parse_csv(text, source=str(path))
+    raise CaptureError(f"{path}: unknown capture format '{path.suffix}'; give a COMTRADE .cfg/.cff, "
+                       "an analyser export or a .csv")
+
+
+def load_capture_bytes(data: bytes, *, name: str, travel_channel: str = "travel",
+                       vibration_channel: str = "vibration", encoding: str | None = None,
+                       rate: float | None = None, to_rad=None) -> Capture:
+    """Read one uploaded text capture (an analyser export or a CSV) held in memory."""
+    text, _ = decode_text(data, name=name, encoding=encoding)
+    source = f"upload:{name}"
+    if looks_like_analyser(text):
+        return analyser_capture(text, source=source, travel_channel=travel_channel, rate=rate, to_rad=to_rad)
+    return parse_csv(text, source=source)
+
+
+def sniff_text(path: Path, encoding: str | None):
+    """(text, encoding) of a file with an unknown suffix when it decodes as text, else (None, None)."""
+    try:
+        data = path.read_bytes()[:4_000_000]
+    except OSError:
+        return None, None
+    if b"\0" in data[:4096]:
+        return None, None
+    try:
+        text, enc = decode_text(data, name=str(path), encoding=encoding)
+    except Exception:
+        return None, None
+    return text, enc
+
+
+def analyser_capture(text: str, *, source: str, travel_channel: str = "travel", rate: float | None = None,
+                     to_rad=None) -> Capture:
+    """An analyser export as a Capture: the chosen contact travel mapped to rad by ``to_rad``,
+    the other wired channels in ``aux`` (their own units), the header in ``meta["analyser"]``."""
+    record = parse_analyser(text, source=source, rate=rate)
+    to_rad = to_rad or getattr(travel_channel, "to_rad", None)
+    travels = [c for c in record.channels if c.kind == TRAVEL]
+    wanted = str(travel_channel).strip()
+    if wanted.lower() == "travel":
+        wired = [c for c in travels if c.wired]
+        if not wired:
+            raise CaptureError(f"{source}: no contact-travel channel is wired (all read a constant)")
+        chosen = wired[0]
+    else:
+        matches = [c for c in travels if wanted.lower() in (c.name.lower(), c.column.lower())]
+        if not matches:
+            raise CaptureError(f"{source}: no travel channel named '{wanted}' (travel channels: "
+                               f"{', '.join(c.name for c in travels)}); set [channels] travel in the breaker file")
+        chosen = matches[0]
+        if not chosen.wired:
+            raise CaptureError(f"{source}: travel channel {chosen.name} is not wired (it reads a constant)")
+    if to_rad is None:
+        raise CaptureError(f"{source}: the contact travel {chosen.name} is in mm; the breaker file's [travel] "
+                           "section must map mm to the model's coordinate (config/breakers/generic-analyser.toml "
+                           "serves a breaker of unknown design; see docs/breaker-file.md)")
+    stated = record.stated_stroke_mm(chosen.name)
+    try:
+        travel, info = to_rad(chosen.data, chosen.unit, stated)
+    except ValueError as exc:
+        raise CaptureError(f"{source}: {exc}") from None
+    aux = tuple(AuxChannel(c.name, c.kind, c.unit, c.data) for c in record.channels if c.wired)
+    others = [c.name for c in travels if c.wired and c is not chosen]
+    warnings = list(record.warnings)
+    if others:
+        warnings.append(f"travel {chosen.name} is fitted; also wired: {', '.join(others)} "
+                        "(choose one with [channels] travel)")
+    meta = {"warnings": warnings, "travel_channel": chosen.name, "travel_unit": chosen.unit,
+            "travel_map": info,
+            "analyser": {"profile": record.profile, "rate_source": record.rate_source, "bare": record.bare,
+                         "metadata": record.metadata, "results": record.results}}
+    cap = Capture(travel=np.asarray(travel, dtype=float), sample_rate=float(record.sample_rate), vibration=None,
+                  source=source, meta=meta, aux=aux)
+    check_finite(cap)
+    return cap
 
 
 def read_comtrade(cfg_path: str | Path, *, travel_channel: str = "travel", vibration_channel: str = "vibration",
@@ -109,7 +196,7 @@ def record_to_capture(record: Record, *, source: str, travel_channel: str = "tra
     cap = Capture(travel=travel, sample_rate=float(record.sample_rate), vibration=vibration,
                   start_time=record_start_time(record), source=source,
                   travel_limits=_channel_limits(ch_t, TRAVEL_UNITS), vibration_limits=vib_limits,
-                  meta={"warnings": notes, "encoding": record.encoding})
+                  meta={"warnings": notes, "encoding": record.encoding, **_kept_meta(record.hdr_text)})
     if temperature_channel:
         temp = _temperature(record, names, temperature_channel, source, notes)
         if temp is not None:
@@ -140,6 +227,21 @@ def _temperature(record: Record, names, wanted: str, source: str, notes: list) -
                      f"(sensor fault?): operation not temperature-compensated")
         return None
     return round(t, 3)
+# What hvcb's own .hdr (service.acquisition.comtrade_writer) keeps of an analyser record that a
+# .cfg cannot say: the coil command (the fit's window start) and the analyser's header.
+_KEPT = ("command_s", "command_source", "motion_s", "analyser", "travel_map", "travel_channel", "travel_unit")
+
+
+def _kept_meta(hdr_text: str | None) -> dict:
+    if not hdr_text or not hdr_text.lstrip().startswith("{"):
+        return {}
+    import json
+
+    try:
+        meta = json.loads(hdr_text).get("meta")
+    except (ValueError, AttributeError):
+        return {}
+    return {k: meta[k] for k in _KEPT if isinstance(meta, dict) and k in meta}
 
 
 def _channel_limits(ch, table) -> tuple | None:

@@ -14,8 +14,9 @@ from pathlib import Path
 from typing import Annotated
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
+from .breaker_travel import TravelMapError, travel_options
 from .mechanics.breaker import TABLE2_RANGES, Breaker
 from .mechanics.cam_profile import CamProfile, CamProfileError
 
@@ -88,12 +89,23 @@ class Cam(_Section):
 
 
 class Travel(_Section):
+    """The model's stroke, and how a contact travel recorded in mm maps to it (breaker_travel)."""
+
     stroke_rad: _num(0.0, 2 * math.pi, desc="rad") | None = None
+    record_unit: str | None = Field(None, max_length=8)
+    record_zero: str | None = Field(None, max_length=8)
+    mm_per_rad: float | str | None = None
+    table: str | None = Field(None, pattern=FILE_NAME_PATTERN, description="linkage CSV beside the breaker file")
+
+
+class UnknownDesign(_Section):
+    estimate: list[str] = Field(default_factory=list, max_length=8)
 
 
 class Channels(_Section):
     travel: str = Field("travel", pattern=CHANNEL_PATTERN)
     vibration: str = Field("vibration", pattern=CHANNEL_PATTERN)
+    temperature: str | None = Field(None, pattern=CHANNEL_PATTERN, description="ambient/mechanism [C]")
 
 
 class Acquisition(_Section):
@@ -113,11 +125,18 @@ class BreakerFileModel(BaseModel):
     opening_spring: OpeningSpring
     arc_chamber: ArcChamber
     buffer: Buffer
-    cam: Cam
+    cam: Cam | None = None  # required but for an [unknown_design] (no cam table: no closing model)
+    unknown_design: UnknownDesign | None = None
     travel: Travel = Field(default_factory=Travel)
     channels: Channels = Field(default_factory=Channels)
     acquisition: Acquisition = Field(default_factory=Acquisition)
     ranges: dict[str, tuple[float, float]] = Field(default_factory=dict)
+
+    @model_validator(mode="after")
+    def _cam_or_unknown(self):
+        if self.cam is None and self.unknown_design is None:
+            raise ValueError("[cam] profile is missing (only an [unknown_design] breaker goes without one)")
+        return self
 
     @field_validator("ranges")
     @classmethod
@@ -168,23 +187,36 @@ def breaker_from_text(text: str, cam_table: str, *, source: str = "(text)", defa
     """A ``Breaker`` from a breaker file's text and its cam table's text (the API and the
     database hold both as text)."""
     model = parse_breaker_text(text, source=source)
-    cam = cam_profile_from_text(cam_table, source=model.cam.profile)
-    return _build(model, cam, default_name=default_name)
+    cam = cam_profile_from_text(cam_table, source=model.cam.profile) if model.cam is not None else None
+    return _build(model, cam, default_name=default_name, source=source, folder=None)
 
 
-def _build(model: BreakerFileModel, cam: CamProfile, *, default_name: str) -> Breaker:
+def _build(model: BreakerFileModel, cam: CamProfile | None, *, default_name: str, source,
+           folder: Path | None) -> Breaker:
+    """``folder``: where files the breaker file names live (a linkage table); None for text."""
     values = {**model.closing_spring.model_dump(), **model.opening_spring.model_dump(),
               **model.arc_chamber.model_dump(), **model.buffer.model_dump()}
     ranges = dict(TABLE2_RANGES)
     ranges.update({k: (float(lo), float(hi)) for k, (lo, hi) in model.ranges.items()})
     stroke = model.travel.stroke_rad
+    stroke = float(stroke if stroke is not None else (cam.stroke if cam is not None else 1.0))
+    channels = model.channels.model_dump(exclude_none=True)
+    sections = {"travel": model.travel.model_dump(exclude_none=True)}
+    if model.unknown_design is not None:
+        sections["unknown_design"] = model.unknown_design.model_dump()
+    try:
+        extra = travel_options(sections, (folder or Path(".")) / str(source), stroke, channels["travel"])
+    except TravelMapError as exc:
+        raise BreakerFileError(str(exc)) from None
+    channels["travel"] = extra.pop("travel_channel")
     return Breaker(
         name=model.name or default_name,
         cam=cam,
-        stroke=float(cam.stroke if stroke is None else stroke),
+        stroke=stroke,
         ranges=ranges,
-        channels=model.channels.model_dump(),
+        channels=channels,
         acquisition=model.acquisition.model_dump(exclude_none=True),
+        **extra,
         **{k: float(v) for k, v in values.items()},
     )
 
@@ -199,8 +231,8 @@ def load_breaker(path: str | Path) -> Breaker:
     except UnicodeDecodeError as exc:
         raise BreakerFileError(f"breaker file {path} is not valid TOML: {exc}") from None
     model = parse_breaker_text(text, source=str(path))
-    cam = load_cam_profile(path.parent / model.cam.profile)
-    return _build(model, cam, default_name=path.stem)
+    cam = load_cam_profile(path.parent / model.cam.profile) if model.cam is not None else None
+    return _build(model, cam, default_name=path.stem, source=path.name, folder=path.parent)
 
 
 def cam_profile_from_text(text: str, *, source: str) -> CamProfile:

@@ -33,11 +33,12 @@ def fsync_file(path: str | os.PathLike) -> None:
         os.fsync(fh.fileno())
 
 
-def write_durably(path: str | os.PathLike, data: bytes | str, *, mode: int = 0o644,
+def write_durably(path: str | os.PathLike, data: bytes | str, *, mode: int = 0o600,
                   sync_dir: bool = True) -> Path:
     """Write ``data`` (str as UTF-8) to ``path`` atomically and durably; return the path.
 
-    ``mode`` is the file's permission bits (``mkstemp`` would leave 0600). ``sync_dir=False``
+    ``mode`` is the file's permission bits: 0600 by default, whatever the umask, since captures,
+    keys and the journal are the service's alone (docs/security.md). ``sync_dir=False``
     leaves the directory's fsync to the caller, who writes several files and syncs once.
     """
     path = Path(path)

@@ -18,6 +18,8 @@ def register(subparsers) -> None:
     d.add_argument("stream", help="recording: COMTRADE .cfg/.cff or CSV with t_s,travel_rad,vibration_g")
     d.add_argument("--breaker", default=DEFAULT_BREAKER, help="breaker file (stroke, trigger levels, channels)")
     d.add_argument("--json", action="store_true", help="print a JSON list, one object per operation")
+    d.add_argument("--rate", type=_rate, default=None,
+                   help="sampling rate of a bare analyser export that states none [Hz; 10k = 10 kS/s]")
     _trigger_options(d)
     d.set_defaults(func=run_detect)
 
@@ -48,6 +50,12 @@ def register(subparsers) -> None:
     c.set_defaults(func=run_capture)
 
 
+def _rate(text):
+    from service.estimation.commands import rate_hz
+
+    return rate_hz(text)
+
+
 def _trigger_options(p) -> None:
     p.add_argument("--shock-threshold-g", type=float, default=None,
                    help="latch-shock level [g] (default: the breaker file's [acquisition])")
@@ -75,7 +83,7 @@ def run_detect(args) -> int:
 
     breaker, settings = _settings(args)
     recording = read_capture(args.stream, travel_channel=breaker.channels.get("travel", "travel"),
-                             vibration_channel=breaker.channels.get("vibration", "vibration"))
+                             vibration_channel=breaker.channels.get("vibration", "vibration"), rate=args.rate)
     from service.progress import progress
 
     with progress(recording.travel.size, desc=f"detect {Path(args.stream).name}", unit="sample",

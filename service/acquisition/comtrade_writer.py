@@ -135,6 +135,17 @@ def _dat(stamps: np.ndarray, codes: list, fmt: str) -> bytes:
     return rec.tobytes()
 
 
+def stored_analyser_results(cfg_path) -> dict | None:
+    """The analyser header (profile, metadata, results) kept in a stored capture's .hdr, if any."""
+    hdr = Path(cfg_path).with_suffix(".hdr")
+    try:
+        meta = json.loads(hdr.read_text()).get("meta") or {}
+    except (OSError, ValueError, AttributeError):
+        return None
+    found = meta.get("analyser") if isinstance(meta, dict) else None
+    return found if isinstance(found, dict) else None
+
+
 def _header(capture: Capture) -> dict:
     """Free-text .hdr content: what the .cfg cannot say (flags, window, stream position)."""
     return {"source": capture.source, "flags": list(capture.flags),

@@ -58,6 +58,23 @@ def make_driver(acq, breaker):
     raise ValueError(f"no driver for acquisition driver {acq.driver!r}")
 
 
+def _analyser_records(acq) -> list:
+    """The replay files when they are all breaker-analyser exports (recognised by content)."""
+    if acq.driver != "replay":
+        return []
+    from drivers.analyser import looks_like_analyser
+    from drivers.capture_file import sniff_text
+
+    files = [Path(p) for p in acq.replay.files]
+    for f in files:
+        if f.suffix.lower() in (".cfg", ".cff", ".dat"):
+            return []
+        text, _ = sniff_text(f, None)
+        if text is None or not looks_like_analyser(text):
+            return []
+    return files
+
+
 @dataclass
 class DaqState:
     """What one DAQ is doing now (a snapshot; times UTC).
@@ -234,9 +251,15 @@ class DaqRunner:
                 if fut.done():
                     inflight.discard(fut)
 
-        pipeline = asyncio.create_task(capture_stream(self.driver, TriggerSettings.from_breaker(self.breaker),
-                                                      self.out_dir, on_capture=on_capture, prefix=prefix,
-                                                      clock=self.clock))
+        records = _analyser_records(self.acq)
+        if records:  # breaker-analyser exports: whole records, operations found from the coils
+            from service.acquisition.pipeline import capture_records
+
+            work = capture_records(records, self.breaker, self.out_dir, on_capture=on_capture, prefix=prefix)
+        else:
+            work = capture_stream(self.driver, TriggerSettings.from_breaker(self.breaker), self.out_dir,
+                                  on_capture=on_capture, prefix=prefix, clock=self.clock)
+        pipeline = asyncio.create_task(work)
         stopper = asyncio.create_task(self._stop.wait())
         driver = self.driver
         close = getattr(driver, "aclose", None)

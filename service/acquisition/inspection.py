@@ -25,9 +25,17 @@ def register(subparsers) -> None:
     p.add_argument("capture", help="COMTRADE .cfg (with its .dat), .dat, .cff, or .csv")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--breaker", default=None, help="breaker file: adds the travel/vibration channel mapping")
+    p.add_argument("--rate", default=None, type=_rate,
+                   help="sampling rate of a bare analyser export that states none [Hz; 10k = 10 kS/s]")
     p.add_argument("--encoding", default=None,
                    help="text encoding of the names (default: UTF-8, else detected: cp1251, GBK, ISO-8859-1)")
     p.set_defaults(func=run_inspect)
+
+
+def _rate(text):
+    from service.estimation.commands import rate_hz
+
+    return rate_hz(text)
 
 
 def run_inspect(args) -> int:
@@ -36,7 +44,7 @@ def run_inspect(args) -> int:
         from service.breaker_file import load_breaker
 
         channels = load_breaker(args.breaker).channels
-    report = inspect_capture(args.capture, channels=channels, encoding=args.encoding)
+    report = inspect_capture(args.capture, channels=channels, encoding=args.encoding, rate=args.rate)
     if args.json:
         print(json.dumps(report, ensure_ascii=False, allow_nan=False))
     else:
@@ -44,7 +52,8 @@ def run_inspect(args) -> int:
     return 0
 
 
-def inspect_capture(path: str | Path, *, channels: dict | None = None, encoding: str | None = None) -> dict:
+def inspect_capture(path: str | Path, *, channels: dict | None = None, encoding: str | None = None,
+                    rate: float | None = None) -> dict:
     """The report of one capture file as a JSON-able dict.
 
     ``channels`` is a breaker file's ``[channels]`` (``{"travel": name, "vibration": name}``);
@@ -56,15 +65,29 @@ def inspect_capture(path: str | Path, *, channels: dict | None = None, encoding:
     if path.is_dir():
         raise CaptureError(f"{path} is a folder; give the capture's .cfg, .cff or .csv file")
     suffix = path.suffix.lower()
-    if suffix in (".csv", ".txt"):
+    analyser = None
+    if suffix not in (".cfg", ".cff", ".dat"):
+        from drivers.analyser import looks_like_analyser
+        from drivers.capture_file import sniff_text
+
+        text, enc = sniff_text(path, encoding)
+        if text is not None and looks_like_analyser(text):
+            analyser = (text, enc)
+    if analyser is not None:
+        report = _inspect_analyser(path, *analyser, rate)
+    elif suffix in (".csv", ".txt"):
         report = _inspect_csv(path, encoding)
     elif suffix in (".cfg", ".cff", ".dat"):
         report = _inspect_comtrade(path, encoding)
     else:
-        raise CaptureError(f"{path}: unknown capture format '{path.suffix}'; give a COMTRADE .cfg/.cff or a .csv")
+        raise CaptureError(f"{path}: unknown capture format '{path.suffix}'; give a COMTRADE .cfg/.cff, "
+                           "an analyser export or a .csv")
     wanted = {"travel": "travel", "vibration": "vibration", **(channels or {})}
     names = {a["name"].strip().lower(): a["name"] for a in reversed(report["analog"])}
     report["mapping"] = {k: names.get(str(wanted[k]).strip().lower()) for k in ("travel", "vibration")}
+    if report.get("container") == "analyser CSV" and str(wanted["travel"]).strip().lower() == "travel":
+        wired = [a["name"] for a in report["analog"] if a.get("kind") == "travel" and a.get("wired")]
+        report["mapping"]["travel"] = wired[0] if wired else None  # the first wired contact travel
     report["mapping_source"] = "breaker file" if channels else "default channel names"
     return report
 
@@ -107,6 +130,28 @@ def _inspect_comtrade(path: Path, encoding: str | None) -> dict:
         "analog": [{"name": ch.name, "unit": ch.unit, **_stats(x)} for ch, x in zip(h.analog, rec.analog)],
         "digital": [{"name": ch.name} for ch in h.digital],
         "warnings": list(rec.warnings),
+    }
+
+
+def _inspect_analyser(path: Path, text: str, enc: str, rate: float | None) -> dict:
+    """A breaker-analyser export: every table channel in its own unit (wired or not), the
+    header's metadata and the analyser's own results."""
+    from drivers.analyser import parse_analyser
+
+    rec = parse_analyser(text, source=str(path), rate=rate, require_rate=False)
+    fs = rec.sample_rate
+    md = rec.metadata
+    return {
+        "file": str(path), "container": "analyser CSV", "revision": None, "read_as_revision": None,
+        "file_type": rec.profile, "encoding": enc, "hdr_encoding": None, "inf_encoding": None,
+        "station": md.get("station"), "device": md.get("breaker_type"), "line_frequency_hz": None,
+        "sample_rate_hz": fs, "rate_source": rec.rate_source, "rate_sections": [], "samples": rec.samples,
+        "declared_samples": None, "duration_s": rec.samples / fs if fs else None,
+        "start": None, "trigger": None,
+        "analog": [{"name": c.name, "unit": c.unit, "kind": c.kind, "column": c.column, "wired": c.wired,
+                    **_stats(c.data)} for c in rec.channels],
+        "digital": [], "warnings": list(rec.warnings), "bare": rec.bare,
+        "metadata": md, "results": rec.results,
     }
 
 
@@ -191,7 +236,8 @@ def format_report(r: dict) -> str:
                + (f", {_num(r['duration_s'])} s" if r["duration_s"] is not None else ""))
     if r["start"] or r["trigger"]:
         out.append(f"start     {r['start'] or '-'}   trigger {r['trigger'] or '-'}")
-    rows = [(a["name"], a["unit"], _num(a["min"]), _num(a["median"]), _num(a["max"])) for a in r["analog"]]
+    rows = [(a["name"] + ("" if a.get("wired", True) else " (not wired)"), a["unit"], _num(a["min"]),
+             _num(a["median"]), _num(a["max"])) for a in r["analog"]]
     head = ("name", "unit", "min", "median", "max")
     widths = [max(len(str(x[i])) for x in rows + [head]) for i in range(5)]
     out.append(f"analog    {len(rows)}")
@@ -207,6 +253,14 @@ def format_report(r: dict) -> str:
     m = r["mapping"]
     out.append(f"mapping   travel: {m['travel'] or 'none'}, vibration: {m['vibration'] or 'none'} "
                f"({r['mapping_source']})")
+    if r.get("results"):
+        out.append("analyser results")
+        for name, v in r["results"].items():
+            if isinstance(v, dict):
+                shown = ", ".join(f"{k} {_num(x)}" for k, x in v.items() if x not in (None, 0, 0.0))
+                out.append(f"  {name}: {shown or 'all zero'}")
+            else:
+                out.append(f"  {name}: {_num(v) if isinstance(v, float) else v}")
     if r["warnings"]:
         out.append("warnings")
         out += [f"  - {w}" for w in r["warnings"]]

@@ -146,3 +146,31 @@ def _detect_block(block, settings: TriggerSettings) -> list[DetectedOperation]:
 
 
 __all__ = ["CaptureStats", "capture_name", "capture_stream", "detect_capture"]
+
+
+async def capture_records(paths, breaker, out_dir: str | Path, *, on_capture: Callable | None = None,
+                          fmt: str = "BINARY", prefix: str = "op", station: str = "hvcb") -> CaptureStats:
+    """Capture files that are whole records (a breaker analyser's exports: coil currents, travel
+    in mm, no vibration channel): each operation found in them (``detect_capture``'s coil path)
+    is written as COMTRADE and handed on like a triggered capture. The replay of an edge agent
+    uses it for analyser exports; the files are read with the breaker's channel mapping."""
+    from .capture_file import read_capture
+    from .trigger import TriggerSettings, detect_capture
+
+    out_dir = Path(out_dir)
+    stats = CaptureStats()
+    settings = TriggerSettings.from_breaker(breaker)
+    for path in paths:
+        record = await asyncio.to_thread(read_capture, path, travel_channel=breaker.channels.get("travel", "travel"),
+                                         vibration_channel=breaker.channels.get("vibration", "vibration"))
+        for det in detect_capture(record, settings):
+            name = f"{prefix}-{Path(path).stem}-{det.shock_index:08d}-{det.operation}"
+            out = await asyncio.to_thread(write_comtrade, det.capture, out_dir, name, format=fmt, station=station)
+            stats.captures += 1
+            stats.files.append(out)
+            stats.by_operation[det.operation] = stats.by_operation.get(det.operation, 0) + 1
+            if on_capture is not None:
+                result = on_capture(out, det)
+                if inspect.isawaitable(result):
+                    await result
+    return stats

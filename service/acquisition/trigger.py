@@ -166,13 +166,18 @@ class DetectedOperation:
         """JSON-able summary; times in s from sample ``origin_index``."""
         fs = self.sample_rate
         cap = self.capture
-        return {"operation": self.operation,
-                "t_start_s": (self.window_start_index - origin_index) / fs,
-                "t_end_s": (self.window_end_index - origin_index) / fs,
-                "flags": list(self.flags),
-                "shock_index": int(self.shock_index),
-                "capture_start_s": (cap.first_sample_index - origin_index) / fs,
-                "capture_end_s": (cap.first_sample_index + cap.travel.size - origin_index) / fs}
+        out = {"operation": self.operation,
+               "t_start_s": (self.window_start_index - origin_index) / fs,
+               "t_end_s": (self.window_end_index - origin_index) / fs,
+               "flags": list(self.flags),
+               "shock_index": int(self.shock_index),
+               "capture_start_s": (cap.first_sample_index - origin_index) / fs,
+               "capture_end_s": (cap.first_sample_index + cap.travel.size - origin_index) / fs}
+        if cap.meta.get("command_source"):  # an analyser record: the command is a coil's rise
+            out["command"] = cap.meta["command_source"]
+        if cap.meta.get("motion_s") is not None:
+            out["motion_start_s"] = (cap.first_sample_index - origin_index) / fs + float(cap.meta["motion_s"])
+        return out
 
 
 class TriggerDetector:
@@ -415,8 +420,14 @@ def detect_capture(capture: Capture, settings: TriggerSettings, *, block_samples
     ``on_progress(n)`` is told each time ``n`` more samples have been scanned.
     """
     if capture.vibration is None:
-        raise ValueError(f"{capture.source or 'the recording'} has no vibration channel: "
-                         "the trigger needs the latch-release shock")
+        if not capture.aux_of("coil_current"):
+            raise ValueError(f"{capture.source or 'the recording'} has no vibration channel and no coil "
+                             "currents: the trigger needs the latch-release shock or the command")
+        from .coil_trigger import detect_from_coils  # an analyser record: coils give the command
+
+        if on_progress is not None:
+            on_progress(capture.travel.size)
+        return detect_from_coils(capture, settings)
     detector = TriggerDetector(settings, capture.sample_rate)
     found = []
     first = int(capture.first_sample_index)

@@ -70,7 +70,8 @@ def create_breaker(body: s.BreakerCreate, session: SessionDep, _: AdminDep):
 
     try:
         breaker = breaker_from_text(body.breaker_file, body.cam_table, source="(sent)")
-        cam_name = parse_breaker_text(body.breaker_file, source="(sent)").cam.profile
+        cam = parse_breaker_text(body.breaker_file, source="(sent)").cam  # none for an unknown design
+        cam_name = cam.profile if cam is not None else ""
     except BreakerFileError as exc:
         raise HTTPException(422, f"invalid breaker file: {exc}") from None
     if parse_breaker_text(body.breaker_file, source="(sent)").name is None:

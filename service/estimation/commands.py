@@ -15,6 +15,21 @@ from .window import FitError
 DEFAULT_BREAKER = "config/breakers/reference-252kV.toml"
 
 
+def rate_hz(text: str) -> float:
+    """``--rate``: samples per second, ``10000``, ``10k`` or ``10kS/s``."""
+    import argparse
+
+    t = text.strip().lower().removesuffix("s/s").removesuffix("hz").strip()
+    factor = 1e3 if t.endswith("k") else 1.0
+    try:
+        value = float(t.removesuffix("k")) * factor
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a rate (give samples per second: 10000 or 10k)") from None
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"the rate must be positive, got '{text}'")
+    return value
+
+
 def register(subparsers) -> None:
     p = subparsers.add_parser("fit", help="fit the dynamic model to one captured operation")
     p.add_argument("capture", help="COMTRADE .cfg (with its .dat) or CSV t_s,travel_rad[,vibration_g]")
@@ -22,6 +37,11 @@ def register(subparsers) -> None:
     p.add_argument("--operation", required=True, choices=("open", "close"))
     p.add_argument("--dc", type=float, default=None,
                    help="closing only: DC = AO [s^-2] from the latest opening fit (default: breaker file)")
+    p.add_argument("--index", type=int, default=0,
+                   help="in a record of several operations (an analyser's CO or O-CO test), which one "
+                        "of the --operation kind to fit, counting from 0 (default 0)")
+    p.add_argument("--rate", type=rate_hz, default=None,
+                   help="sampling rate of a bare analyser export that states none [Hz; 10k = 10 kS/s]")
     p.add_argument("--seed", type=int, default=1, help="CMA-ES seed (explicit; default 1)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=run_fit)
@@ -31,8 +51,8 @@ def run_fit(args) -> int:
     try:
         breaker = load_breaker(args.breaker)
         capture = read_capture(args.capture, travel_channel=breaker.channels["travel"],
-                               vibration_channel=breaker.channels["vibration"])
-        result = fit_capture(capture, breaker, args.operation, dc=args.dc, seed=args.seed)
+                               vibration_channel=breaker.channels["vibration"], rate=args.rate)
+        result = fit_capture(capture, breaker, args.operation, dc=args.dc, seed=args.seed, index=args.index)
     except (BreakerFileError, CaptureError, FitError) as exc:
         raise UserError(str(exc)) from None
     if args.json:
@@ -61,6 +81,19 @@ def format_fit(result) -> str:
         lines.append(f"{name:<6}{value:>14.4f}{f'[{lo:.4f}, {hi:.4f}]':>30}{pct:>8.3f}")
     if result.operation == "close":
         lines.append(f"DC = {result.dc_used:.2f} s^-2 from the {result.dc_source}")
+    for name, est in result.structure.items():
+        lo, hi = est["ci95"]
+        lines.append(f"{name:<6}{est['value']:>14.4f}{f'[{lo:.4f}, {hi:.4f}]':>30}  (estimated from the curve)")
+    if result.characteristics_record:
+        c = result.characteristics_record
+        lines.append(f"in the record's unit ({c.get('channel')}): stroke {c['stroke_mm']:.1f} mm, max travel "
+                     f"{c['max_travel_mm']:.1f} mm, overtravel {c['overtravel_mm']:.1f} mm, rebound "
+                     f"{c['rebound_mm']:.1f} mm, average speed {c['average_speed_m_s']:.2f} m/s, operating time "
+                     f"{c['operating_time_s'] * 1e3:.1f} ms")
+    if result.picked:
+        p = result.picked
+        lines.append(f"fitted {p['operation']} {p['index']} of {p['of']} in a record of "
+                     f"{'-'.join(o[0].upper() for o in p['record_operations'])}")
     for w in result.warnings:
         lines.append(f"warning: {w}")
     return "\n".join(lines)

@@ -25,7 +25,7 @@ from .result import FitResult
 from .polish import batched_jacobian, polish
 from .uncertainty import Z95, covariance
 from .warm_start import Prior, sigma0, warm_space
-from .window import FitError, FitWindow, decimate, prepare_window
+from .window import FitError, FitWindow, block_samples, decimate, prepare_window
 
 _TAU_SCAN = 21  # onset-delay candidates scored when the prior has none
 WARM_STALL = 2  # iterations without gain at the noise floor that end a warm CMA-ES run
@@ -45,11 +45,13 @@ class FitSettings:
     Attributes
     ----------
     block_open, block_close : int
-        Samples averaged into one fitting-grid point (anti-alias boxcar).
+        Samples averaged into one fitting-grid point (anti-alias boxcar), stated at 128 kS/s;
+        other rates keep the block's duration (``window.block_samples``).
     block_close_search, search_step_close : int, float
         Coarser grid and RK4 step [s] the closing's CMA-ES search uses before the exact polish.
     tau_max : float
-        Largest onset delay between latch shock and motion [s].
+        Largest onset delay between latch shock and motion [s]. After a coil command (no
+        vibration channel) the window's own range applies (``FitWindow.tau_range``).
     sigma0 : float
         Initial CMA-ES step size in the unit cube.
     max_readaptations : int
@@ -89,7 +91,8 @@ class FitSettings:
 
 def fit_capture(capture: Capture, breaker: Breaker, operation: str, *, dc: float | None = None,
                 seed: int = 1, settings: FitSettings = FitSettings(),
-                evaluator: Evaluator = evaluate_locally, prior: Prior | None = None) -> FitResult:
+                evaluator: Evaluator = evaluate_locally, prior: Prior | None = None,
+                index: int = 0) -> FitResult:
     """Estimate the model parameters of one operation.
 
     Parameters
@@ -109,6 +112,10 @@ def fit_capture(capture: Capture, breaker: Breaker, operation: str, *, dc: float
     prior : Prior, optional
         Warm start (previous fit or design values, see ``warm_start``). Without one, the cold
         search over the breaker file's ranges (the paper's protocol).
+    index : int
+        In a record of several operations without a vibration channel (an analyser's CO or
+        O–CO test), which operation of this kind to fit (0 = the first). The result's
+        ``window_s`` is in the whole record's time.
 
     Raises
     ------
@@ -118,6 +125,13 @@ def fit_capture(capture: Capture, breaker: Breaker, operation: str, *, dc: float
     if operation not in ("open", "close"):
         raise FitError(f"operation must be 'open' or 'close', got {operation!r}")
     t0 = time.perf_counter()
+    if operation == "close" and breaker.cam is None:
+        raise FitError(f"breaker '{breaker.name}' has no cam table: the closing model needs the "
+                       "camshaft-to-output-shaft cam profile, which a travel record cannot give; "
+                       "only the opening can be fitted (give the design's [cam] profile to fit closings)")
+    from .record import operation_capture
+
+    capture, offset_s, picked = operation_capture(capture, breaker, operation, index)
     window = prepare_window(capture, breaker, operation)
     if operation == "close":
         if dc is None:
@@ -149,15 +163,35 @@ def fit_capture(capture: Capture, breaker: Breaker, operation: str, *, dc: float
             result.stages.insert(0, {"fallback": fallback})
             result.start = f"cold search (warm start from {prior.source} left " \
                            f"{fallback['rmse_over_noise']:.1f}× the noise floor)"
+    if "alpha0" in breaker.estimate_structure and operation == "open":
+        from .structure import fit_alpha0
+
+        breaker = fit_alpha0(result, window, breaker, settings)  # the curve's own α0, in the CIs
+        result.rmse_rad = _rmse_at_samples(capture, breaker, result, window, dc)
     if operation == "close":
         result.dc_used, result.dc_source = dc, dc_source
     result.fitness = 1.0 / result.rmse_rad if result.rmse_rad > 0 else float("inf")
     result.characteristics = travel_characteristics(
         capture.t, capture.travel, operation, stroke=breaker.stroke, t_start=window.t_start,
-        alpha0=breaker.alpha0)
+        alpha0=result.structure.get("alpha0", {}).get("value", breaker.alpha0))
+    if capture.meta.get("travel_map"):
+        from .structure import characteristics_in_record_unit
+
+        result.characteristics_record = characteristics_in_record_unit(capture, operation, window, result, breaker)
+    result.command_source = window.command_source
+    if picked is not None:
+        result.picked = picked
+    if offset_s:
+        result.window_s = (result.window_s[0] + offset_s, result.window_s[1] + offset_s)
+    if window.tau_range is not None and window.shock_found:
+        result.warnings.append(f"no vibration channel: the window starts at the {window.command_source} "
+                               f"rise and the onset delay was searched in {window.tau_range[0] * 1e3:.1f}–"
+                               f"{window.tau_range[1] * 1e3:.1f} ms (coil-to-motion)")
     if not window.shock_found and capture.vibration is not None:
+        where = ("the first sample" if window.tau_range is None else
+                 f"{window.tau_range[1] * 1e3 - 1:.0f} ms before the travel departs")
         result.warnings.append("no latch-release shock found in the vibration channel: "
-                               "the window starts at the first sample")
+                               f"the window starts at {where}")
     if result.rmse_rad > 3.0 * window.noise_rad:
         result.warnings.append(f"the fit leaves {result.rmse_rad / window.noise_rad:.1f}× the noise "
                                "floor: the reduced model does not explain this curve (run hvcb diagnose)")
@@ -197,7 +231,8 @@ def _search(score, space: ParameterSpace, seed: int, settings: FitSettings, eval
 
 def _fit_opening(window: FitWindow, breaker: Breaker, seed, settings, evaluator,
                  prior: Prior | None = None) -> FitResult:
-    grid = decimate(window.t, window.y, settings.block_open)
+    grid = decimate(window.t, window.y, block_samples(settings.block_open, window.sample_rate))
+    tau_lo, tau_hi = window.tau_range or (0.0, settings.tau_max)
     above = np.nonzero(grid.y > breaker.alpha0)[0]
     if above.size == 0:
         raise FitError("the opening never reaches the buffer engagement angle α0 "
@@ -210,8 +245,8 @@ def _fit_opening(window: FitWindow, breaker: Breaker, seed, settings, evaluator,
     target = _floor_target(grid, window, settings.noise_floor_blocks)
     names = list(OPENING_PARAMETERS) + ["tau"]
     scale = np.array([3000.0, 5000.0, 30.0, 5000.0, 1e-3])
-    lower = np.array([1.0, 1.0, 0.0, 0.0, 0.0])
-    upper = np.array([1e6, 1e6, 1e4, 1e6, settings.tau_max])
+    lower = np.array([1.0, 1.0, 0.0, 0.0, tau_lo])
+    upper = np.array([1e6, 1e6, 1e4, 1e6, tau_hi])
 
     def residual_rows(X):
         return grid.weight[None, :] * (full.full(X) - grid.y[None, :])
@@ -219,12 +254,12 @@ def _fit_opening(window: FitWindow, breaker: Breaker, seed, settings, evaluator,
     if prior is not None:
         x, evaluations, stages, ranges, polished = _warm_search(
             lambda X: weighted_rmse(full.full(X), grid, ss_full), residual_rows,
-            (lower, upper, scale), prior, tuple(names), seed, settings, evaluator, target)
+            (lower, upper, scale), prior, tuple(names), seed, settings, evaluator, target, tau_hi)
         return _finish("open", names, x, residual_rows, scale, lower, upper, window, settings,
                        evaluations, 0, stages, [], ranges, start=f"warm start from {prior.source}",
                        polished=polished)
 
-    ranges = dict(breaker.ranges, tau=(0.0, settings.tau_max))
+    ranges = dict(breaker.ranges, tau=(tau_lo, tau_hi))
     pre = OpeningCurves(breaker, _subgrid(grid, n1))
     space1 = ParameterSpace.from_ranges(("AO", "BO", "tau"), ranges)
     ss_pre = _within_ss(pre.grid, window)
@@ -258,18 +293,20 @@ def _fit_opening(window: FitWindow, breaker: Breaker, seed, settings, evaluator,
 
 def _fit_closing(window: FitWindow, breaker: Breaker, seed, settings, evaluator,
                  prior: Prior | None = None, *, dc: float) -> FitResult:
-    grid = decimate(window.t, window.y, settings.block_close)
+    fs = window.sample_rate
+    grid = decimate(window.t, window.y, block_samples(settings.block_close, fs))
+    tau_lo, tau_hi = window.tau_range or (0.0, settings.tau_max)
     # Two fidelities: CMA-ES searches with coarse RK4 steps; the polish and the uncertainty use
     # the accurate step, so the reported estimate carries no step-size bias.
-    search = ClosingCurves(breaker, decimate(window.t, window.y, settings.block_close_search), dc,
+    search = ClosingCurves(breaker, decimate(window.t, window.y, block_samples(settings.block_close_search, fs)), dc,
                            dt_max=settings.search_step_close)
     exact = ClosingCurves(breaker, grid, dc)
     ss = _within_ss(search.grid, window)
     target = _floor_target(search.grid, window, settings.noise_floor_blocks)
     names = list(CLOSING_PARAMETERS) + ["tau"]
     scale = np.array([20000.0, 2.0, 10000.0, 1e-3])
-    lower = np.array([1.0, 1e-3, 0.0, 0.0])
-    upper = np.array([1e7, 100.0, 1e6, settings.tau_max])
+    lower = np.array([1.0, 1e-3, 0.0, tau_lo])
+    upper = np.array([1e7, 100.0, 1e6, tau_hi])
 
     def residual_rows(X):
         return grid.weight[None, :] * (exact.full(X) - grid.y[None, :])
@@ -280,11 +317,11 @@ def _fit_closing(window: FitWindow, breaker: Breaker, seed, settings, evaluator,
     if prior is not None:
         x, evaluations, stages, ranges, polished = _warm_search(
             score, residual_rows, (lower, upper, scale), prior, tuple(names), seed, settings,
-            evaluator, target)
+            evaluator, target, tau_hi)
         return _finish("close", names, x, residual_rows, scale, lower, upper, window, settings,
                        evaluations, 0, stages, [], ranges, start=f"warm start from {prior.source}",
                        polished=polished)
-    ranges = dict(breaker.ranges, tau=(0.0, settings.tau_max))
+    ranges = dict(breaker.ranges, tau=(tau_lo, tau_hi))
     space = ParameterSpace.from_ranges(("AC", "BC", "CC", "tau"), ranges)
     x, space, ev, ra, st, hit = _search(
         score, space, seed, settings, evaluator,
@@ -294,7 +331,7 @@ def _fit_closing(window: FitWindow, breaker: Breaker, seed, settings, evaluator,
 
 
 def _warm_search(score, residual_rows, bounds, prior: Prior, names: tuple, seed, settings,
-                 evaluator, target):
+                 evaluator, target, tau_max: float):
     """The warm path: a least-squares step from the prior, then CMA-ES around it.
 
     The landscape is narrow (1 % off in the springs is already about 3× the noise floor), so a
@@ -305,7 +342,7 @@ def _warm_search(score, residual_rows, bounds, prior: Prior, names: tuple, seed,
     polish's own answer.
     """
     lower, upper, scale = bounds
-    space, u0 = warm_space(prior, names, settings.tau_max)
+    space, u0 = warm_space(prior, names, tau_max)
     evaluations = 0
 
     def score_unit(U):

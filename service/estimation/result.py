@@ -52,6 +52,15 @@ class FitResult:
         Classic travel characteristics of the measured curve.
     start : str
         How the search started: ``cold search`` or ``warm start from …``.
+    structure : dict
+        Structure of an unknown design estimated from the curve (``alpha0``: value, stderr,
+        ci95 [rad]); its uncertainty is already in every parameter's CI.
+    characteristics_record : dict
+        The characteristics in the record's own unit (mm, m/s) for a travel recorded in mm.
+    command_source : str
+        What the window starts at: ``latch shock``, ``coil C4/...``, ``first sample``.
+    picked : dict or None
+        For a record of several operations: which one was fitted (kind, index, of how many).
     """
 
     operation: str
@@ -77,6 +86,10 @@ class FitResult:
     warnings: list = field(default_factory=list)
     characteristics: dict = field(default_factory=dict)
     start: str = "cold search"
+    structure: dict = field(default_factory=dict)
+    characteristics_record: dict = field(default_factory=dict)
+    command_source: str = "latch shock"
+    picked: dict | None = None
 
     def to_dict(self) -> dict:
         out = {
@@ -102,6 +115,13 @@ class FitResult:
             "characteristics": self.characteristics,
             "start": self.start,
         }
+        if self.structure:
+            out["structure"] = self.structure
+        if self.characteristics_record:
+            out["characteristics_record"] = self.characteristics_record
+        out["command_source"] = self.command_source
+        if self.picked is not None:
+            out["picked"] = self.picked
         if self.operation == "close":
             out["dc_used"] = float(self.dc_used)
             out["dc_source"] = self.dc_source
@@ -114,11 +134,13 @@ class FitResult:
         the valid interval.
         """
         return fitted_travel(self.operation, self.parameters, self.window_s[0], self.onset_delay_s,
-                             capture.t, breaker, dc_used=self.dc_used)
+                             capture.t, breaker, dc_used=self.dc_used,
+                             alpha0=self.structure.get("alpha0", {}).get("value"))
 
 
 def fitted_travel(operation: str, parameters: dict, window_start_s: float, onset_delay_s: float,
-                  t: np.ndarray, breaker: Breaker, *, dc_used: float | None = None) -> np.ndarray:
+                  t: np.ndarray, breaker: Breaker, *, dc_used: float | None = None,
+                  alpha0: float | None = None) -> np.ndarray:
     """The model curve of a stored fit, rebuilt from its parameters (nothing else is stored).
 
     Parameters
@@ -133,6 +155,9 @@ def fitted_travel(operation: str, parameters: dict, window_start_s: float, onset
     breaker : Breaker
     dc_used : float, optional
         The closing's opening-spring factor DC [s^-2].
+    alpha0 : float, optional
+        Buffer engagement [rad] an unknown design's fit estimated (``structure``); else the
+        breaker file's.
 
     Returns
     -------
@@ -143,6 +168,10 @@ def fitted_travel(operation: str, parameters: dict, window_start_s: float, onset
     t = np.asarray(t, dtype=float) - window_start_s
     if operation == "open":
         x = [parameters[k] for k in ("AO", "BO", "DO", "EO")] + [onset_delay_s]
+        if alpha0 is not None:
+            import dataclasses
+
+            breaker = dataclasses.replace(breaker, alpha0=float(alpha0))
         theta = OpeningCurves.at(t, x, breaker)
     else:
         x = [parameters[k] for k in ("AC", "BC", "CC")] + [onset_delay_s]

@@ -43,6 +43,11 @@ class FitWindow:
         Whether the start came from the vibration shock (else the first sample).
     sample_rate : float
         [Hz]
+    tau_range : tuple of float or None
+        Onset-delay search range [s] when the start is a coil command (``command_source``);
+        None: the estimator's latch-shock range.
+    command_source : str
+        ``latch shock`` (vibration), ``coil C4/...`` (a coil current's rise) or ``first sample``.
     """
 
     t: np.ndarray
@@ -53,6 +58,8 @@ class FitWindow:
     noise_source: str
     shock_found: bool
     sample_rate: float
+    tau_range: tuple | None = None
+    command_source: str = "latch shock"
 
 
 @dataclass(frozen=True)
@@ -88,7 +95,21 @@ def decimate(t, y, block: int) -> Grid:
     return Grid(tc, yc, count, spread)
 
 
-MIN_IDLE = 200
+# Idle samples needed to take the noise from the pre-trigger: the standard deviation of n
+# samples is then known to ±1/sqrt(2(n-1)) = ±10 % (n = 50), at any sample rate.
+MIN_IDLE = 50
+# Rates the estimator's block sizes are stated at; other rates keep the same block duration.
+REFERENCE_RATE_HZ = 128_000.0
+# The model starts from rest at the onset, so it reaches the 2 %-of-stroke departure a few ms
+# later (sqrt(2·0.02/BO) = 2.8 ms for the reference BO); 15 ms covers BO down to 180 s^-2.
+# After a coil command the onset delay is searched in [departure − this, departure + 1 ms].
+ONSET_BEFORE_DEPARTURE_S = 15e-3
+
+
+def block_samples(block_at_reference: int, sample_rate: float) -> int:
+    """Samples per fitting-grid block at ``sample_rate`` [Hz] for a block stated at 128 kS/s:
+    the same block duration (so the same anti-alias bandwidth), at least one sample."""
+    return max(1, int(round(block_at_reference * sample_rate / REFERENCE_RATE_HZ)))
 
 
 def prepare_window(capture: Capture, breaker: Breaker, operation: str) -> FitWindow:
@@ -128,7 +149,22 @@ def prepare_window(capture: Capture, breaker: Breaker, operation: str) -> FitWin
     base = np.median(y[: max(int(0.005 * fs), 16)])
     i_move = int(np.argmax(smooth > base + 0.02 * span))
     i_shock, shock_found = _find_shock(capture, i_move, fs, operation)
-    idle = y[:i_shock] if shock_found else y[: max(i_move - int((0.002 if operation == 'open' else 0.012) * fs), 0)]
+    tau_range, command_source = None, "latch shock" if shock_found else "first sample"
+    if not shock_found and capture.vibration is None and capture.meta.get("command_s") is not None:
+        # A coil current's rise (no accelerometer): the command plays the latch shock's role.
+        i_cmd = int(round(float(capture.meta["command_s"]) * fs))
+        if 0 <= i_cmd < i_move:
+            i_shock, shock_found = i_cmd, True
+            command_source = str(capture.meta.get("command_source", "coil"))
+            depart = (i_move - i_cmd) / fs
+            tau_range = (max(0.0, depart - ONSET_BEFORE_DEPARTURE_S), depart + 1e-3)
+    if not shock_found and i_move > (ONSET_BEFORE_DEPARTURE_S + 2e-3) * fs:
+        # No shock and no command (an accelerometer's shock lost, e.g. filtered out at a low
+        # rate): start shortly before the travel departs and search the onset across that span.
+        i_shock = i_move - int(ONSET_BEFORE_DEPARTURE_S * fs)
+        tau_range, command_source = (0.0, ONSET_BEFORE_DEPARTURE_S + 1e-3), "travel departure"
+    lead = int((0.002 if operation == 'open' else 0.012) * fs)
+    idle = y[:i_shock] if shock_found and tau_range is None else y[: max(i_move - lead, 0)]
     if idle.size >= MIN_IDLE:
         noise = float(np.std(idle - np.mean(idle), ddof=1))
         noise_source = "pre-trigger"
@@ -144,7 +180,8 @@ def prepare_window(capture: Capture, breaker: Breaker, operation: str) -> FitWin
     t = np.arange(i_end + 1 - i_shock) / fs
     if t.size < 0.005 * fs:
         raise FitError(f"{src}: the valid interval is only {t.size / fs * 1e3:.1f} ms long")
-    return FitWindow(t, y[sl].copy(), t_start, t_end, noise, noise_source, shock_found, fs)
+    return FitWindow(t, y[sl].copy(), t_start, t_end, noise, noise_source, shock_found, fs,
+                     tau_range, command_source)
 
 
 def operation_word(operation: str) -> str:

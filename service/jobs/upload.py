@@ -95,7 +95,7 @@ class Upload:
 
     capture: object
     kind: str
-    files: dict
+    files: dict | None  # None: a text record, stored as the operation cut from it
     name: str
 
 
@@ -108,6 +108,8 @@ def capture_from_upload(blobs: dict[str, bytes], row, operation: str | None, cap
     from service.acquisition.capture_file import load_comtrade_bytes
 
     names = list(blobs)
+    if len(names) == 1 and names[0].endswith((".csv", ".txt")):
+        return _text_capture_upload(blobs[names[0]], names[0], row, operation, idempotency_key)
     if len(names) == 1 and names[0].endswith(".zip"):
         cfg, dat, name = _pair_from_zip(blobs[names[0]], cap_bytes)
     elif len(names) == 1 and names[0].endswith(".cff"):
@@ -117,7 +119,7 @@ def capture_from_upload(blobs: dict[str, bytes], row, operation: str | None, cap
         dat_names = [n for n in names if n.endswith(".dat")]
         if len(cfg_names) != 1 or len(dat_names) != 1 or len(names) != 2:
             raise UploadRefused(422, "send a COMTRADE .cfg and its .dat (two files), one .cff, "
-                                     "or one .zip holding a .cfg and its .dat")
+                                     "one .zip holding a .cfg and its .dat, or one analyser export (.csv)")
         cfg, dat, name = blobs[cfg_names[0]], blobs[dat_names[0]], cfg_names[0]
     name = Path(name).name
     if idempotency_key is not None and content_hash(cfg, dat or b"") != idempotency_key:
@@ -146,6 +148,34 @@ def capture_from_upload(blobs: dict[str, bytes], row, operation: str | None, cap
     return Upload(capture, kind, files, name)
 
 
+def _text_capture_upload(data: bytes, name: str, row, operation: str | None, idempotency_key: str | None):
+    """One text capture (a breaker-analyser export, or a CSV t_s,travel_rad[,vibration_g]) through
+    the same reader as the CLI; an analyser record's operation is cut out here."""
+    from service.acquisition.capture_file import load_capture_bytes
+    from service.estimation.record import upload_operation
+
+    if idempotency_key is not None and content_hash(data, b"") != idempotency_key:
+        raise UploadRefused(422, "the Idempotency-Key is not the content hash of the uploaded file "
+                                 "(damaged in transit, or the wrong key)")
+    breaker = crud.breaker_model(row)
+    try:
+        capture = load_capture_bytes(data, name=name, travel_channel=breaker.channels.get("travel", "travel"),
+                                     vibration_channel=breaker.channels.get("vibration", "vibration"))
+        capture, kind = upload_operation(capture, breaker, operation)
+        if capture.travel.size < 16:
+            raise CaptureError(f"{name}: the record holds fewer than 16 samples")
+        from service.jobs.ingest import infer_operation
+
+        kind = kind or infer_operation(capture)
+    except ValueError as exc:  # CaptureError, FitError: the reader's words
+        raise UploadRefused(422, str(exc) if name in str(exc) else f"{name}: {exc}") from None
+    except Exception:  # a reader bug must not become a 500 for the client
+        raise UploadRefused(422, f"{name}: the capture could not be read") from None
+    # The operation cut from the record is stored in hvcb's COMTRADE, the analyser's own results
+    # in its .hdr (service.acquisition.comtrade_writer): files=None.
+    return Upload(capture, kind, None, name)
+
+
 async def parse_upload(state, files, row, operation: str | None, idempotency_key: str | None = None) -> Upload:
     """Read the uploaded files (anything with an async ``read``) into memory and
     ``capture_from_upload`` them on a worker thread, at most ``[server] upload_parsers`` uploads at
@@ -169,6 +199,9 @@ def ingest_upload(monitor, settings, upload: Upload, *, breaker_id: int, source:
     from service.storage.spool import Spool, write_capture_bytes
 
     key = capture_key or Spool.new_key()
+    if upload.files is None:
+        return monitor.ingest(upload.capture, breaker_id=breaker_id, operation=upload.kind, source=source,
+                              capture_key=key)
     now = utcnow()
     path = write_capture_bytes(upload.files, settings.capture_dir / now.strftime("%Y") / now.strftime("%m%d"), key)
     return monitor.ingest(upload.capture, breaker_id=breaker_id, operation=upload.kind, source=source,

@@ -38,6 +38,12 @@ class Breaker:
         Initial CMA-ES search range per parameter.
     channels : dict
         COMTRADE channel names for ``travel`` and ``vibration``.
+    travel_map : object or None
+        How a contact travel recorded in mm maps to rad (``service.breaker_travel.TravelMap``).
+    estimate_structure : tuple of str
+        Structure an unknown design's opening fit estimates from the curve (``alpha0``).
+    cam : CamProfile or None
+        None for a design whose cam table is unknown: its closing cannot be modelled.
     """
 
     name: str
@@ -60,11 +66,13 @@ class Breaker:
     kb: float
     rb: float
     alpha0: float
-    cam: CamProfile
+    cam: CamProfile | None
     stroke: float = 1.0
     ranges: dict = field(default_factory=lambda: dict(TABLE2_RANGES))
     channels: dict = field(default_factory=lambda: {"travel": "travel", "vibration": "vibration"})
     acquisition: dict = field(default_factory=dict)
+    travel_map: object = None
+    estimate_structure: tuple = ()
 
     @property
     def CO(self) -> float:

@@ -26,8 +26,9 @@ def register_breaker_file(session: Session, *, path: Path, tag: str | None = Non
     path = Path(path)
     breaker = load_breaker(path)  # validates before anything is stored
     text = path.read_text()
-    cam_name = parse_breaker_text(text, source=str(path)).cam.profile
-    cam_text = (path.parent / cam_name).read_text()
+    cam = parse_breaker_text(text, source=str(path)).cam  # none for an unknown design
+    cam_name = cam.profile if cam is not None else ""
+    cam_text = (path.parent / cam_name).read_text() if cam_name else ""
     return upsert_breaker(session, name=breaker.name, tag=tag, breaker_file=text,
                           cam_file_name=cam_name, cam_table=cam_text)
 

@@ -119,12 +119,6 @@ def write_capture_bytes(files: dict[str, bytes], directory: Path, key: str) -> P
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     for suffix, data in files.items():
-        final = directory / f"{key}{suffix}"
-        tmp = directory / f".{key}{suffix}.tmp"
-        with open(tmp, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, final)
-    _fsync_dir(directory)
+        write_durably(directory / f"{key}{suffix}", data, sync_dir=False)
+    fsync_dir(directory)
     return directory / f"{key}{'.cff' if '.cff' in files else '.cfg'}"

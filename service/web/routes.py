@@ -243,9 +243,32 @@ def operation_page(request: Request, operation_id: Id, user: Reader):
 
         pruned = get_preview(session, operation_id=op.id)
         names = OPENING if op.kind == "open" else CLOSING
+        from service.acquisition.comtrade_writer import stored_analyser_results
+
+        analyser = stored_analyser_results(op.capture_path) if op.capture_path else None
         ctx = {"op": op, "b": b, "fit": op.fit, "diag": diag, "names": names, "units": UNITS,
-               "CHARACTERISTICS": CHARACTERISTICS, "nav": "fleet", "pruned": pruned}
-    return page(request, "operation.html", ctx)
+               "CHARACTERISTICS": CHARACTERISTICS, "nav": "fleet", "pruned": pruned,
+               "analyser": analyser_table(analyser)}
+    return page(request, "operation.html", ctx)  # rendered with the connection back
+
+
+def analyser_table(analyser: dict | None) -> dict | None:
+    """The analyser's own results as rows (result, unit, value per channel) for the page."""
+    if not analyser or not analyser.get("results"):
+        return None
+    rows, channels = [], []
+    for name, values in analyser["results"].items():
+        values = values if isinstance(values, dict) else {"": values}
+        shown = {k: v for k, v in values.items() if isinstance(v, (int, float)) and v != 0}
+        for k in shown:
+            if k not in channels:
+                channels.append(k)
+        base, _, unit = name.rpartition("_m_s") if name.endswith("_m_s") else name.rpartition("_")
+        label, unit = (base, "m/s") if name.endswith("_m_s") else (base, unit)
+        rows.append({"label": label.replace("_", " "), "unit": {"a": "A"}.get(unit, unit), "cells": shown})
+    return {"profile": analyser.get("profile"), "rows": rows, "channels": channels,
+            "station": (analyser.get("metadata") or {}).get("station"),
+            "breaker_type": (analyser.get("metadata") or {}).get("breaker_type")}
 
 
 @router.get("/ui/operations/{operation_id}/curves.json")

@@ -166,7 +166,7 @@ def integrate_rk4(op, x0, p, e, c, cx, cy, cc, t, dt_max):
     for j in range(m):
         tj = t[j]
         if tj > tc:
-            nsub = int(math.ceil((tj - tc) / dt_max - 1e-9))
+            nsub = max(int(math.ceil((tj - tc) / dt_max - 1e-9)), 1)  # a sub-ulp gap is one tiny step
             hs = (tj - tc) / nsub
             for _ in range(nsub):
                 xn = _rk4_step(op, x, hs, p, e, c, cx, cy, cc)
