@@ -39,6 +39,8 @@ from .report import new_figure, save_figure, write_json, write_markdown
 PROTOCOLS = ("cv5", "cross_unit")
 FRICTION_SWEEP = (0.01, 0.03)  # TOf ± [-]: one test session's repeatability, and three times it
 VARIANT = "proposed_free"  # the proposed rule with a free nominal per setting for every parameter
+# The sweep runs the cheap methods only: BPNN and CNN would triple the study's time.
+SWEEP_METHODS = ("proposed", "svm", VARIANT)
 # Acceptance of issue 22: the paper's 98.3 % in cv5; 95 % on a unit without training data.
 TARGET = {"cv5": 0.983, "cross_unit": 0.95}
 
@@ -76,8 +78,9 @@ def run(out_dir: Path, *, seed: int = DEFAULT_SEED, quick: bool = False,
     for spread in FRICTION_SWEEP[:1] if quick else FRICTION_SWEEP:
         sd = {u: build_dataset(classification_spec(seed, quick, unit=u, friction_spread=spread),
                                out_dir, workers=workers) for u in (1, 2)}
-        r = run_protocols(sd, folds, makers, methods, desc=f"TOf ±{100 * spread:g} %")
-        sweep[f"{spread:g}"] = {p: {m: r[p][m]["accuracy"] for m in methods} for p in PROTOCOLS}
+        swept = [m for m in methods if m in SWEEP_METHODS]
+        r = run_protocols(sd, folds, makers, swept, desc=f"TOf ±{100 * spread:g} %")
+        sweep[f"{spread:g}"] = {p: {m: r[p][m]["accuracy"] for m in swept} for p in PROTOCOLS}
         sweep[f"{spread:g}"]["bo_spread"] = bo_spread(sd[1], bo_step(load_reference()))
 
     base = load_reference()
@@ -248,9 +251,9 @@ def _write_tables(out_dir, result):
             sections.append((f"confusion: {p}, {m} (rows true setting, columns predicted)",
                              ["true \\ pred"] + [str(k + 1) for k in range(len(c))],
                              [[i + 1] + row for i, row in enumerate(c)]))
-    cols = [m for m in METHODS if m in result["protocols"]["cv5"]] + [VARIANT]
+    cols = [m for m in SWEEP_METHODS if m == VARIANT or m in result["protocols"]["cv5"]]
     sections.append(("beyond the acceptance: the same study with a smaller friction spread "
-                     "(cv5 / cross_unit accuracy [%])",
+                     "(cv5 / cross_unit accuracy [%]; BPNN and CNN not run here)",
                      ["TOf spread", "BO sd within a setting [steps]"] + cols,
                      [[f"±{100 * float(k):g} %", f"{v['bo_spread']['within_sd_in_steps']:.2f}"]
                       + [f"{100 * v['cv5'][m]:.1f} / {100 * v['cross_unit'][m]:.1f}" for m in cols]
