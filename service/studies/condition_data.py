@@ -8,6 +8,11 @@ the reduced model when ``spec.source == "reduced"`` — and records it like the 
 16-bit quantisation, latch shock). :func:`build_dataset` fits every capture in a process pool and
 keeps the estimates and the baselines' raw-travel features in an ``.npz`` so the classification
 and robustness studies do not refit.
+
+The Table 9 set (issue 22) adds field nuisance on the same seam: trigger jitter, sensor offset
+and gain, per-capture SNR (:func:`draw_recording`, a stream of its own so the clean sets stay
+bit-identical), and a second unit of the design drawn within manufacturing tolerance
+(:func:`unit_breaker`); the fit of every unit gets the design breaker, never the drawn one.
 """
 
 from __future__ import annotations

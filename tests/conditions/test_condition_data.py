@@ -1,4 +1,5 @@
-"""The dataset seam and the pure pieces of the condition studies (no fitting)."""
+"""The dataset seam and the pure pieces of the condition studies (no fitting), and the field
+nuisance of the Table 9 dataset (issue 22) at the quick size."""
 
 import dataclasses
 
@@ -6,10 +7,11 @@ import numpy as np
 import pytest
 
 from service.studies.common import load_reference
+from service.studies.classification_methods import FIELD_NUISANCE, UNIT_TOLERANCE, classification_spec
 from service.studies.condition_classifiers import NearestNominal
 from service.studies.condition_data import (
-    FEATURE_POINTS, DatasetSpec, bo_step, condition_breaker, make_capture, noise_for_snr, snr_db,
-    travel_features)
+    FEATURE_POINTS, NUISANCE_NAMES, DatasetSpec, bo_step, condition_breaker, make_capture,
+    noise_for_snr, snr_db, travel_features, unit_breaker, zero_on_idle)
 from service.studies.conditions import deviations
 
 
@@ -86,8 +88,6 @@ def test_deviations_use_stepped_reference_for_bo():
 
 # --- The field dataset of Table 9 (issue 22): each nuisance present and within its range -----
 
-from service.studies.classification_methods import FIELD_NUISANCE, UNIT_TOLERANCE, classification_spec  # noqa: E402
-from service.studies.condition_data import NUISANCE_NAMES, unit_breaker, zero_on_idle  # noqa: E402
 
 
 @pytest.fixture(scope="module")
