@@ -214,7 +214,8 @@ def _acc(result, protocol, method):
 
 def _plot_confusion(out_dir, result):
     methods = [m for m in METHODS if m in result["confusion"]["cv5"]]
-    fig, axes = new_figure(len(PROTOCOLS), len(methods), figsize=(3.0 * len(methods), 6.0))
+    fig, axes = new_figure(len(PROTOCOLS), len(methods), figsize=(3.0 * len(methods), 7.0),
+                           layout="constrained")
     axes = np.atleast_2d(axes)
     for r, p in enumerate(PROTOCOLS):
         for ax, m in zip(axes[r], methods):
@@ -223,7 +224,8 @@ def _plot_confusion(out_dir, result):
             for (i, j), v in np.ndenumerate(c):
                 ax.text(j, i, str(v), ha="center", va="center", fontsize=7)
             ax.set_title(f"{p} {m}: {100 * result['protocols'][p][m]:.1f} %", fontsize=9)
-            ax.set_xlabel("predicted setting")
+            if r == len(PROTOCOLS) - 1:
+                ax.set_xlabel("predicted setting")
             ax.set_ylabel("true setting")
             ax.set_xticks(range(len(c)), range(1, len(c) + 1))
             ax.set_yticks(range(len(c)), range(1, len(c) + 1))
