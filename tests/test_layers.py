@@ -17,9 +17,10 @@ ROOT = Path(__file__).resolve().parents[1]
 # Low -> high. A module may import its own package, anything in its own layer (without a cycle
 # between packages) and anything lower. Keep in step with docs/architecture.md.
 LAYERS: list[tuple[str, ...]] = [
-    ("service.errors", "service.progress", "service.plots", "service.durable", "service.decimation"),
+    ("service.errors", "service.progress", "service.plots", "service.durable", "service.decimation",
+     "service.arguments"),
     ("service.mechanics",),                                      # the paper's reduced physics
-    ("drivers", "service.breaker_file", "service.acquisition"),  # captures, DAQs, breaker files
+    ("drivers", "service.breaker_file", "service.breaker_travel", "service.acquisition"),  # captures, DAQs, breaker files
     ("service.estimation", "service.storage", "service.alarms", "service.prototypes"),
     ("service.diagnosis", "service.studies"),
     ("service.jobs", "service.workers", "service.refit", "service.agent", "service.iec61850",

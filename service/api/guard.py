@@ -21,6 +21,8 @@ import time
 
 from starlette.exceptions import HTTPException
 
+from service.web.auth import client_address  # noqa: F401 (re-exported for the API's key checks)
+
 log = logging.getLogger("hvcb.guard")
 
 API_UPLOAD = re.compile(r"^/api/v1/breakers/[^/]+/captures/?$")
@@ -39,12 +41,6 @@ def _header(scope, name: bytes) -> str | None:
         if k == name:
             return v.decode("latin-1")
     return None
-
-
-def client_address(scope) -> str:
-    """The client's address (uvicorn has already applied X-Forwarded-For from trusted proxies)."""
-    client = scope.get("client")
-    return client[0] if client else "unknown"
 
 
 async def _answer(send, status: int, detail: str, *, headers: dict | None = None, close: bool = True) -> None:

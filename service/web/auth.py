@@ -31,6 +31,12 @@ PRE_MAX_AGE_S = 600
 WEB_ROLES = ("reader", "operator", "admin")  # roles that may sign in to the page
 
 
+def client_address(scope) -> str:
+    """The client's address (uvicorn has already applied X-Forwarded-For from trusted proxies)."""
+    client = scope.get("client")
+    return client[0] if client else "unknown"
+
+
 class WebAuthError(Exception):
     """Raised by the page dependencies; the app's handler turns it into a page or JSON answer.
 

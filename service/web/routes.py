@@ -88,7 +88,7 @@ async def signin(request: Request, api_key: Annotated[str, Form(max_length=400)]
         return _signin_page(request, next=next, error="the sign-in form expired: try again", status=403)
     if not api_key.strip():
         return _signin_page(request, next=next, error="enter your API key", status=401)
-    from service.api.guard import client_address
+    from .auth import client_address
 
     throttle, address = request.app.state.auth_throttle, client_address(request.scope)
     wait = throttle.blocked_for(address)
