@@ -261,10 +261,13 @@ def main(argv=None) -> int:
     procs: list[subprocess.Popen] = []
     state = {"pending": 0}
     service_url = {}
+    service_up = threading.Event()
 
     def report_temperature(breaker: str, celsius: float) -> None:
         import httpx
 
+        if not service_up.wait(180):
+            raise RuntimeError("the service did not come up: no temperature can be written")
         r = httpx.put(f"{service_url['base']}/api/v1/breakers/{breaker}/temperature",
                       json={"temperature_c": round(celsius, 2)}, headers={"X-API-Key": ADMIN_KEY}, timeout=30)
         if r.status_code >= 300:
@@ -302,6 +305,7 @@ def main(argv=None) -> int:
             if time.monotonic() > deadline:
                 raise RuntimeError("the service did not answer /healthz within 120 s")
             time.sleep(0.2)
+        service_up.set()
         log(f"service up (pid {service.pid}) on {url.split('@')[-1]}; {args.operations} operations, "
             f"{args.breakers} breakers, {'Celery' if args.celery else 'local pool'} x{args.workers}")
         engine = make_engine(url)
