@@ -10,7 +10,6 @@ from typing import Annotated
 
 import anyio.to_thread
 from fastapi import Depends, HTTPException, Request, Security
-from fastapi.concurrency import run_in_threadpool
 from fastapi.security import APIKeyHeader
 from sqlalchemy.exc import DBAPIError, OperationalError
 from sqlalchemy.orm import Session
