@@ -14,7 +14,14 @@ from fastapi import HTTPException
 
 from service.api.routes import _inflate, _pair_from_zip
 
+from .conftest import sqlite_url
 from .zipbomb import lying_zip
+
+
+@pytest.fixture
+def db_url(tmp_path):
+    """SQLite only: this finding does not depend on the database."""
+    return sqlite_url(tmp_path)
 
 
 def _peak_rss_reset() -> bool:

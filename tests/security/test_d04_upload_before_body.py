@@ -5,6 +5,16 @@ from __future__ import annotations
 import socket
 
 import httpx
+import pytest
+
+from .conftest import sqlite_url
+
+
+@pytest.fixture
+def db_url(tmp_path):
+    """SQLite only: this finding does not depend on the database."""
+    return sqlite_url(tmp_path)
+
 
 ANNOUNCED = 200 * 1024 * 1024  # 200 MB announced, never sent
 
