@@ -47,6 +47,13 @@ Inertia = _num(0.0, 1e3, desc="kg m^2")
 Torque = _num(0.0, 1e6, lo_open=False, desc="N m")
 Damping = _num(0.0, 1e8, lo_open=False, desc="N s/m")
 Angle = Annotated[float, Field(ge=-2 * math.pi, le=2 * math.pi, allow_inf_nan=False, description="rad")]
+LengthOrZero = _num(0.0, 5.0, lo_open=False, desc="m")
+StiffnessOrZero = _num(0.0, 1e9, lo_open=False, desc="N/m")
+PositiveAngle = _num(0.0, 2 * math.pi, desc="rad")
+SampleRate = _num(100.0, 10e6, lo_open=False, desc="Hz")
+FullScale = _num(0.0, 4 * math.pi, desc="rad")
+Acceleration = _num(0.0, 1e5, desc="g")
+Fraction = Annotated[float, Field(gt=0.0, lt=1.0)]
 
 
 class _Section(BaseModel):
@@ -64,7 +71,7 @@ class ClosingSpring(_Section):
 
 class OpeningSpring(_Section):
     kO: Stiffness
-    xO0: _num(0.0, 5.0, lo_open=False, desc="m")
+    xO0: LengthOrZero
     xO1: Length
     rO: Arm
     J2: Inertia
@@ -79,9 +86,9 @@ class ArcChamber(_Section):
 
 class Buffer(_Section):
     cb: Damping
-    kb: _num(0.0, 1e9, lo_open=False, desc="N/m")
+    kb: StiffnessOrZero
     rb: Arm
-    alpha0: _num(0.0, 2 * math.pi, desc="rad")
+    alpha0: PositiveAngle
 
 
 class Cam(_Section):
@@ -91,7 +98,7 @@ class Cam(_Section):
 class Travel(_Section):
     """The model's stroke, and how a contact travel recorded in mm maps to it (breaker_travel)."""
 
-    stroke_rad: _num(0.0, 2 * math.pi, desc="rad") | None = None
+    stroke_rad: PositiveAngle | None = None
     record_unit: str | None = Field(None, max_length=8)
     record_zero: str | None = Field(None, max_length=8)
     mm_per_rad: float | str | None = None
@@ -109,11 +116,11 @@ class Channels(_Section):
 
 
 class Acquisition(_Section):
-    sample_rate_hz: _num(100.0, 10e6, lo_open=False, desc="Hz") | None = None
-    travel_full_scale_rad: _num(0.0, 4 * math.pi, desc="rad") | None = None
-    vibration_full_scale_g: _num(0.0, 1e5, desc="g") | None = None
-    shock_threshold_g: _num(0.0, 1e5, desc="g") | None = None
-    motion_fraction: Annotated[float, Field(gt=0.0, lt=1.0)] | None = None
+    sample_rate_hz: SampleRate | None = None
+    travel_full_scale_rad: FullScale | None = None
+    vibration_full_scale_g: Acceleration | None = None
+    shock_threshold_g: Acceleration | None = None
+    motion_fraction: Fraction | None = None
 
 
 class BreakerFileModel(BaseModel):

@@ -28,7 +28,7 @@ from .metrics import build_registry, render
 
 log = logging.getLogger("hvcb.api")
 
-HEALTH_REFRESH_S = 0.5   # /healthz answers from a snapshot this fresh...
+HEALTH_REFRESH_S = 0.5   # /healthz without a key answers from a snapshot this fresh...
 HEALTH_MAX_AGE_S = 5.0   # ...and asks the database itself when the snapshot is older than this
 
 
@@ -207,9 +207,10 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
             await authorise_key(request, key, "reader")
             detailed = True
         snap = getattr(request.app.state, "health", None)
-        if snap is not None and time.monotonic() - snap[0] <= HEALTH_MAX_AGE_S:
+        if not detailed and snap is not None and time.monotonic() - snap[0] <= HEALTH_MAX_AGE_S:
             out = snap[1]  # answered on the event loop: no thread, no database connection to wait for
-        else:  # the snapshot thread is behind (the database hangs?): ask directly, on the priority threads
+        else:  # details are read fresh (as is the status when the snapshot thread is behind), on the
+            # priority threads with their own connections
             out = await anyio.to_thread.run_sync(_health, request.app, limiter=request.app.state.priority_limiter)
         return out if detailed else {"status": out["status"]}
 

@@ -89,3 +89,14 @@ def comtrade_pair(capture, *, travel="travel", vibration="vibration") -> tuple[b
         text = cfg.read_text()
         text = text.replace(",travel,", f",{travel},").replace(",vibration,", f",{vibration},")
         return text.encode(), cfg.with_suffix(".dat").read_bytes()
+
+
+def sqlite_url(tmp_path) -> str:
+    """A migrated SQLite database, for modules whose finding does not depend on the database
+    (they override ``db_url`` with it; the pool, clock and path findings run on both lanes)."""
+    from service.storage.db import upgrade
+
+    (tmp_path / "data").mkdir(exist_ok=True)
+    url = f"sqlite:///{tmp_path / 'data' / 'hvcb.sqlite3'}"
+    upgrade(url)
+    return url

@@ -4,7 +4,6 @@ points never wait behind them; the database pool is sized from the thread count.
 
 from __future__ import annotations
 
-import re
 import threading
 from concurrent.futures import ThreadPoolExecutor
 

@@ -13,7 +13,14 @@ import pytest
 
 from service.jobs.upload import UploadRefused, _inflate, _pair_from_zip
 
+from .conftest import sqlite_url
 from .zipbomb import lying_zip
+
+
+@pytest.fixture
+def db_url(tmp_path):
+    """SQLite only: this finding does not depend on the database."""
+    return sqlite_url(tmp_path)
 
 
 def _peak_rss_reset() -> bool:

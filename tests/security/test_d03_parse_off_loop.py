@@ -6,8 +6,16 @@ from __future__ import annotations
 import threading
 
 import httpx
+import pytest
 
 from .conftest import comtrade_pair, synth
+from .conftest import sqlite_url
+
+
+@pytest.fixture
+def db_url(tmp_path):
+    """SQLite only: this finding does not depend on the database."""
+    return sqlite_url(tmp_path)
 
 
 def test_healthz_answers_while_an_upload_is_being_parsed_and_parses_are_bounded(live_server, breaker, monkeypatch):

@@ -10,7 +10,14 @@ from fastapi.testclient import TestClient
 
 from service.api.throttle import AuthThrottle
 
+from .conftest import sqlite_url
 from .test_d15_session_rotation import signin_csrf
+
+
+@pytest.fixture
+def db_url(tmp_path):
+    """SQLite only: this finding does not depend on the database."""
+    return sqlite_url(tmp_path)
 
 
 class Clock:

@@ -5,6 +5,16 @@ from __future__ import annotations
 
 import re
 
+import pytest
+
+from .conftest import sqlite_url
+
+
+@pytest.fixture
+def db_url(tmp_path):
+    """SQLite only: this finding does not depend on the database."""
+    return sqlite_url(tmp_path)
+
 
 def test_docs_pages_load_only_local_assets(env):
     for path, asset in (("/docs", "/static/vendor/swagger-ui/swagger-ui-bundle.js"),

@@ -10,6 +10,14 @@ import pytest
 from service.breaker_file import BreakerFileError, breaker_from_text
 
 from .conftest import BREAKER_FILE
+from .conftest import sqlite_url
+
+
+@pytest.fixture
+def db_url(tmp_path):
+    """SQLite only: this finding does not depend on the database."""
+    return sqlite_url(tmp_path)
+
 
 TEXT = BREAKER_FILE.read_text().replace('name = "reference-252kV"', 'name = "bay-new"')
 CAM = (BREAKER_FILE.parent / "reference-252kV.cam.csv").read_text()

@@ -28,7 +28,7 @@ def test_fit_failure_pruned_curve_and_pages_carry_no_server_path(env):
         crud.store_fit_failure(s, operation_id=op.id, reason=f"capture file missing: {missing}")
         op_id = op.id
     answers = [env.client.get(f"/api/v1/operations/{op_id}", headers=env.h("reader")),
-               env.client.get(f"/api/v1/breakers/1/operations", headers=env.h("operator")),
+               env.client.get("/api/v1/breakers/1/operations", headers=env.h("operator")),
                env.client.get(f"/api/v1/operations/{op_id}/curve", headers=env.h("reader"))]
     assert answers[0].status_code == 200 and "gone.cfg" in answers[0].text
     assert answers[2].status_code == 410

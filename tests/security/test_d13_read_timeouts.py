@@ -5,6 +5,16 @@ from __future__ import annotations
 import socket
 import time
 
+import pytest
+
+from .conftest import sqlite_url
+
+
+@pytest.fixture
+def db_url(tmp_path):
+    """SQLite only: this finding does not depend on the database."""
+    return sqlite_url(tmp_path)
+
 
 def _closed_or_answer(sock: socket.socket, limit_s: float) -> bytes:
     """What the server sends before closing (b"" when it just closes); fails if it keeps the

@@ -4,7 +4,17 @@ from __future__ import annotations
 
 import re
 
+import pytest
+
 from service.web import auth
+
+from .conftest import sqlite_url
+
+
+@pytest.fixture
+def db_url(tmp_path):
+    """SQLite only: this finding does not depend on the database."""
+    return sqlite_url(tmp_path)
 
 
 def signin_csrf(client) -> str:
