@@ -107,7 +107,7 @@ def request_breaker_diagnosis(breaker: BreakerRef, body: BreakerDiagnosisCreate,
                               session: SessionDep, who: ReaderDep):
     """Diagnose the sim-to-real gap of the breaker's last ``last`` stored ``operation``s together
     (any reader). Answers 202 with the diagnosis and its ``Location``; follow it until ``status``
-    is done or failed. Operations flagged ``clock_suspect`` and those whose raw capture was pruned
+    is done or failed. Operations flagged ``clock suspect`` and those whose raw capture was pruned
     are left out (``skipped`` says which and why)."""
     row = _breaker(session, breaker)
     try:

@@ -14,8 +14,8 @@ from .models import BreakerDiagnosisRow, CapturePreviewRow, OperationRow, utcnow
 from .spool import capture_files
 
 PENDING = ("queued", "running")
-# A capture whose clock the acquisition side doubts (its time order among the others is not to be
-# trusted) is left out; both spellings, as a flag may come from a file or a driver.
+# A capture whose clock is doubted (service.jobs.ingest flags "clock suspect": its time order among
+# the others is not to be trusted) is left out; the underscored spelling too, as a driver may use it.
 EXCLUDED_FLAGS = {"clock_suspect": "its clock is suspect", "clock suspect": "its clock is suspect"}
 # At most this many stored operations are looked at to find N usable ones (a bound on the query).
 LOOK_BACK = 200

@@ -20,6 +20,13 @@ REPO = Path(__file__).resolve().parents[2]
 URL = "/api/v1/breakers/reference-252kV/diagnoses"
 
 
+def no_fit(capture, breaker, operation, *, dc=None, seed=1):
+    """Fit double: fails at once (this test is about the diagnosis queue, not about fits)."""
+    from service.estimation import FitError
+
+    raise FitError("not fitted in this test")
+
+
 class HeldDiagnose:
     def __init__(self):
         self.gate = threading.Event()
@@ -57,7 +64,8 @@ def svc(tmp_path):
     url = f"sqlite:///{data / 'hvcb.sqlite3'}"
     upgrade(url)
     settings = load_settings(data_dir=data, database_url=url, broker_url="", executor="inline",
-                             bootstrap_admin_key=None, breakers=[REPO / "config/breakers/reference-252kV.toml"])
+                             bootstrap_admin_key=None, breakers=[REPO / "config/breakers/reference-252kV.toml"],
+                             fit_function=f"{__name__}:no_fit")
     shown = []
     app = create_app(settings, on_key=shown.append)
     breaker = load_breaker(REPO / "config/breakers/reference-252kV.toml")
@@ -74,6 +82,19 @@ def svc(tmp_path):
             cap = type(cap)(**{**cap.__dict__, "start_time": t0 + timedelta(minutes=i)})
             app.state.monitor.ingest(cap, breaker_id=1, operation="open", source="upload")
         yield client, keys
+
+
+def drain(client, keys, held) -> list[dict]:
+    """Let the held diagnoses finish and wait until none is queued or running (so none outlives
+    the double); the breaker's diagnoses."""
+    held.gate.set()
+    deadline = time.monotonic() + 30
+    while True:
+        r = client.get(URL, headers={"X-API-Key": keys["admin"]})
+        if all(d["status"] in ("done", "failed") for d in r.json()):
+            return r.json()
+        assert time.monotonic() < deadline, r.text
+        time.sleep(0.1)
 
 
 def ask(client, keys, who, last):
@@ -103,16 +124,10 @@ def test_readers_are_bounded_with_429_and_identical_requests_reuse(svc, held):
     # an operator is not held back by the readers
     assert ask(client, keys, "op", 7).status_code == 202
     # once the pool has worked through them, the reader may ask again
-    held.gate.set()
-    deadline = time.monotonic() + 30
-    while True:
-        r = client.get(URL, headers={"X-API-Key": keys["r1"]})
-        if all(d["status"] == "done" for d in r.json()):
-            break
-        assert time.monotonic() < deadline, r.text
-        time.sleep(0.1)
+    assert [d["status"] for d in drain(client, keys, held)] == ["done"] * 5
     assert held.runs == 5
     assert ask(client, keys, "r1", 4).status_code == 202
+    drain(client, keys, held)
 
 
 def test_concurrent_requests_of_one_reader_do_not_pass_the_bound_together(svc, held):
@@ -125,3 +140,4 @@ def test_concurrent_requests_of_one_reader_do_not_pass_the_bound_together(svc, h
     for t in threads:
         t.join(timeout=60)
     assert sorted(answers) == [202, 202, 429, 429, 429, 429]
+    assert len(drain(client, keys, held)) == 2

@@ -180,7 +180,9 @@ def test_bad_requests_say_what_is_wrong(svc, fake):
 def test_suspect_clocks_and_pruned_captures_are_left_out(svc, fake):
     opens = svc.store("open", 5)
     with svc.app.state.Session() as s, s.begin():
-        s.get(OperationRow, opens[-1]).flags = ["clock_suspect"]
+        from service.jobs.ingest import CLOCK_SUSPECT  # the flag ingest sets
+
+        s.get(OperationRow, opens[-1]).flags = [CLOCK_SUSPECT]
         s.add(CapturePreviewRow(operation_id=opens[-2], preview={}))
         path = s.get(OperationRow, opens[-3]).capture_path
     for p in (Path(path), Path(path).with_suffix(".dat")):
