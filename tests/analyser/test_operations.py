@@ -130,10 +130,16 @@ def test_acceptance_shared_co_record_detect_and_fit():
     out = json.loads(fit.stdout)
     assert out["operation"] == "open" and out["command_source"].startswith("coil C4")
     assert out["rmse_rad"] < 1.5 * out["noise_rad"]
+    # The example is the reduced model of the reference breaker on a 182 mm stroke (its README):
+    # per unit stroke, its design values must lie in the CIs (which carry α0's and CO's uncertainty).
+    design = load_breaker(REPO / "config/breakers/reference-252kV.toml")
+    truth = design.design_parameters()
     for name in ("AO", "BO", "DO", "EO"):
         lo, hi = out["ci95"][name]
-        assert lo < out["parameters"][name] < hi and (hi - lo) / 2 < 0.05 * out["parameters"][name]
-    assert 0.3 < out["structure"]["alpha0"]["value"] < 0.98
+        assert lo < truth[name] < hi, (name, out["parameters"][name], lo, hi)
+    for name, true in (("alpha0", design.alpha0), ("CO", design.CO)):
+        lo, hi = out["structure"][name]["ci95"]
+        assert lo < true < hi, (name, out["structure"][name])
     assert out["characteristics_record"]["stroke_mm"] == 182.0
     close = subprocess.run(run + ["fit", str(EXAMPLE), "--breaker", GENERIC, "--operation", "close"],
                            capture_output=True, text=True, timeout=120, cwd=REPO)
@@ -153,4 +159,21 @@ def test_alpha0_found_far_from_the_files_starting_guess(tmp_path, monkeypatch, a
     r = fit_capture(cap, b, "open")
     a = r.structure["alpha0"]
     assert abs(a["value"] - alpha0) < 3 * a["stderr"] + 2e-3, a
+    assert r.rmse_rad < 1.3 * r.noise_rad
+
+
+def test_co_estimated_from_the_curve(tmp_path, monkeypatch):
+    """The unknown design's puffer damping CO comes from the curve, not the file's 92.6 s^-1."""
+    import dataclasses
+
+    from . import export_gen
+
+    base = export_gen.truth
+    b0 = base()[0]
+    slow = dataclasses.replace(b0, caec=2.0 * b0.caec)  # CO 185 s^-1
+    monkeypatch.setattr(export_gen, "truth", lambda: (slow, base()[1]))
+    cap, b, _ = _record(tmp_path, length_ms=600)  # the slower opening needs a longer record
+    r = fit_capture(cap, b, "open")
+    lo, hi = r.structure["CO"]["ci95"]
+    assert lo < slow.CO < hi and hi < 1.5 * slow.CO, r.structure["CO"]
     assert r.rmse_rad < 1.3 * r.noise_rad
