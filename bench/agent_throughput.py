@@ -85,7 +85,7 @@ class SimAgent:
 
     def __init__(self, i: int, tmp: Path, breaker, central, *, captures: int, seed: int, on_sent):
         from service.acquisition.comtrade_writer import write_comtrade
-        from service.acquisition.synthetic import synthesize_capture
+        from drivers.synthetic import synthesize_capture
         from service.agent.forwarder import Forwarder
         from service.agent.outbox import Outbox
 

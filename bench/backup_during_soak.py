@@ -15,13 +15,13 @@ Writes bench/results/soak_backup.json (or --out).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import shutil
 import sys
 import tempfile
 import time
 import tomllib
-import uuid
 from pathlib import Path
 
 import httpx
@@ -42,6 +42,7 @@ def main(argv=None) -> int:
     from service.api.app import create_app
     from service.cli import main as hvcb
     from service.settings import load_settings
+    from service.storage.scratch import scratch_pg_database
 
     cfg = tomllib.loads(Path(args.config).read_text())
     key = cfg["bootstrap_admin_key"]
@@ -58,7 +59,10 @@ def main(argv=None) -> int:
         manifest = json.loads((dest / "manifest.json").read_text())
         overrides = {"data_dir": tmp / "restored"}
         if live_settings.database_url:
-            overrides["database_url"], drop = _new_pg_database(live_settings.database_url)
+            scratch = contextlib.ExitStack()
+            overrides["database_url"] = scratch.enter_context(
+                scratch_pg_database(live_settings.database_url, "hvcb_soak_restore"))
+            drop = scratch.close
         else:
             overrides["database_url"] = f"sqlite:///{tmp / 'restored' / 'hvcb.sqlite3'}"
         restore_cfg = tmp / "restore.toml"
@@ -90,22 +94,6 @@ def main(argv=None) -> int:
         if drop:
             drop()
         shutil.rmtree(tmp, ignore_errors=True)
-
-
-def _new_pg_database(url: str):
-    from sqlalchemy import create_engine, text
-    from sqlalchemy.engine import make_url
-
-    admin = create_engine(url, isolation_level="AUTOCOMMIT")
-    name = f"hvcb_soak_restore_{uuid.uuid4().hex[:8]}"
-    with admin.connect() as c:
-        c.execute(text(f'CREATE DATABASE "{name}"'))
-
-    def drop():
-        with admin.connect() as c:
-            c.execute(text(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)'))
-        admin.dispose()
-    return make_url(url).set(database=name).render_as_string(hide_password=False), drop
 
 
 def compare(copy, live, h, n_curves: int) -> dict:

@@ -17,7 +17,7 @@ os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 
-from service.acquisition.synthetic import synthesize_capture  # noqa: E402
+from drivers.synthetic import synthesize_capture  # noqa: E402
 from service.breaker_file import load_breaker  # noqa: E402
 from service.diagnosis import diagnose  # noqa: E402
 from service.prototypes.a import REALISTIC, Effects, make_prototype_simulator  # noqa: E402

@@ -75,7 +75,7 @@ def fit_visible(base: str, key: str) -> float:
     sys.path.insert(0, str(ROOT / "tests" / "service"))
     from comtrade_bytes import comtrade_pair
 
-    from service.acquisition.synthetic import synthesize_capture
+    from drivers.synthetic import synthesize_capture
     from service.breaker_file import load_breaker
 
     breaker = load_breaker(ROOT / "config" / "breakers" / "reference-252kV.toml")

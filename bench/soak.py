@@ -26,6 +26,7 @@ server of --database and dropped afterwards (unless --keep).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import asyncio
 import json
 import os
@@ -46,6 +47,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from service.storage.scratch import scratch_pg_database  # noqa: E402
 from soak_scenario import (DECOY_EVERY, FAULT_EVERY, FS, LATE_EVERY, BreakerScript,  # noqa: E402
                            breaker_files, judge_alarms)
 
@@ -204,23 +206,6 @@ def children(pid: int) -> list[int]:
     return out
 
 
-def fresh_pg_database(url: str) -> tuple[str, callable]:
-    from sqlalchemy import create_engine, text
-    from sqlalchemy.engine import make_url
-
-    admin = create_engine(url, isolation_level="AUTOCOMMIT")
-    name = f"hvcb_soak_{os.getpid()}"
-    with admin.connect() as c:
-        c.execute(text(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)'))
-        c.execute(text(f'CREATE DATABASE "{name}"'))
-
-    def drop():
-        with admin.connect() as c:
-            c.execute(text(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)'))
-        admin.dispose()
-    return make_url(url).set(database=name).render_as_string(hide_password=False), drop
-
-
 def db_bytes(url: str, engine, data_dir: Path) -> int:
     if url.startswith("sqlite"):  # the database file; its WAL is bounded by checkpoints
         return (data_dir / "hvcb.sqlite3").stat().st_size
@@ -268,16 +253,21 @@ def main(argv=None) -> int:
            for i in range(args.breakers)]
     scripts = [BreakerScript(load_breaker(f), i, per[i], args.seed + i, decoy_every=args.decoy_every,
                              seasons=args.temperature != "off") for i, f in enumerate(files)]
-    database_url, drop_db = (fresh_pg_database(args.database) if args.database else (None, None))
+    scratch = contextlib.ExitStack()  # the fresh PostgreSQL database, dropped at the end
+    database_url = scratch.enter_context(scratch_pg_database(args.database, prefix="hvcb_soak")) \
+        if args.database else None
     url = database_url or f"sqlite:///{(tmp / 'data' / 'hvcb.sqlite3').resolve()}"
     engine = None
     procs: list[subprocess.Popen] = []
     state = {"pending": 0}
     service_url = {}
+    service_up = threading.Event()
 
     def report_temperature(breaker: str, celsius: float) -> None:
         import httpx
 
+        if not service_up.wait(180):
+            raise RuntimeError("the service did not come up: no temperature can be written")
         r = httpx.put(f"{service_url['base']}/api/v1/breakers/{breaker}/temperature",
                       json={"temperature_c": round(celsius, 2)}, headers={"X-API-Key": ADMIN_KEY}, timeout=30)
         if r.status_code >= 300:
@@ -315,6 +305,7 @@ def main(argv=None) -> int:
             if time.monotonic() > deadline:
                 raise RuntimeError("the service did not answer /healthz within 120 s")
             time.sleep(0.2)
+        service_up.set()
         log(f"service up (pid {service.pid}) on {url.split('@')[-1]}; {args.operations} operations, "
             f"{args.breakers} breakers, {'Celery' if args.celery else 'local pool'} x{args.workers}")
         engine = make_engine(url)
@@ -394,8 +385,8 @@ def main(argv=None) -> int:
         daqs.stop()
         if engine is not None:
             engine.dispose()
-        if drop_db and not args.keep:
-            drop_db()
+        if not args.keep:
+            scratch.close()
         if args.keep:
             log(f"kept {tmp}")
         else:

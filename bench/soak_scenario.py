@@ -81,7 +81,7 @@ class BreakerScript:
 
     def closing_pool(self):
         """Closings do not drift here; 24 of them are synthesised once (a closing costs 0.25 s)."""
-        from service.acquisition.synthetic import synthesize_capture
+        from drivers.synthetic import synthesize_capture
 
         if self._closings is None:
             self._closings = [synthesize_capture(self.breaker, "close", self.parameters(0), rng=self.rng)[0]
@@ -91,7 +91,7 @@ class BreakerScript:
     def items(self):
         """``(kind, travel, vibration, temperature_c)``: kind "open" | "close" | "decoy";
         ``operations`` real ones. temperature_c is None when the profile is off."""
-        from service.acquisition.synthetic import synthesize_capture
+        from drivers.synthetic import synthesize_capture
 
         opening = done = n = 0
         while done < self.operations:

@@ -44,7 +44,7 @@ def main(argv=None) -> int:
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
 
-    from service.acquisition.stream_script import LoneShock, NoiseBurst, ScriptedStream
+    from drivers.stream_script import LoneShock, NoiseBurst, ScriptedStream
     from service.acquisition.trigger import TriggerDetector, TriggerSettings
     from service.breaker_file import load_breaker
 

@@ -22,19 +22,27 @@ from drivers.comtrade import Record, decode_text, read_cff_bytes, read_record, r
 # Unit spellings accepted per quantity, with the factor to our unit.
 TRAVEL_UNITS = {"rad": 1.0, "radian": 1.0, "radians": 1.0, "deg": np.pi / 180, "degree": np.pi / 180,
                 "degrees": np.pi / 180, "°": np.pi / 180, "mrad": 1e-3}
+# Temperature channel units -> (factor, offset) to Celsius.
+TEMPERATURE_UNITS = {"c": (1.0, 0.0), "°c": (1.0, 0.0), "degc": (1.0, 0.0), "deg c": (1.0, 0.0),
+                     "celsius": (1.0, 0.0), "k": (1.0, -273.15), "kelvin": (1.0, -273.15)}
+# A temperature outside this is a sensor fault (or not a temperature) [C].
+TEMPERATURE_PLAUSIBLE_C = (-60.0, 100.0)
 VIBRATION_UNITS = {"g": 1.0, "gn": 1.0, "m/s2": 1 / 9.80665, "m/s^2": 1 / 9.80665, "m/s²": 1 / 9.80665}
 
 MAX_SAMPLES = 50_000_000
 
 
 def read_capture(path: str | Path, *, travel_channel: str = "travel", vibration_channel: str = "vibration",
-                 encoding: str | None = None, rate: float | None = None, to_rad=None) -> Capture:
+                 encoding: str | None = None, temperature_channel: str | None = None,
+                 rate: float | None = None, to_rad=None) -> Capture:
     """Read a COMTRADE ``.cfg`` (with its ``.dat``), a ``.dat``, a ``.cff``, a breaker-analyser
     export, or a CSV ``t_s,travel_rad[,vibration_g]``.
 
-    ``rate`` [Hz] is the sampling rate of a bare analyser export (one without a header stating
-    it). ``to_rad`` maps a travel recorded in mm to ours (see ``drivers.capture.ChannelName``);
-    by default the one ``travel_channel`` carries, when it is a breaker's ``ChannelName``.
+    ``temperature_channel``: a COMTRADE channel with the ambient or mechanism temperature [C or
+    K]; its median goes into ``meta["temperature_c"]``. ``rate`` [Hz] is the sampling rate of a
+    bare analyser export (one without a header stating it). ``to_rad`` maps a travel recorded in
+    mm to ours (see ``drivers.capture.ChannelName``); by default the one ``travel_channel``
+    carries, when it is a breaker's ``ChannelName``.
 
     Raises
     ------
@@ -50,7 +58,7 @@ def read_capture(path: str | Path, *, travel_channel: str = "travel", vibration_
     suffix = path.suffix.lower()
     if suffix in (".cfg", ".cff", ".dat"):
         return read_comtrade(path, travel_channel=travel_channel, vibration_channel=vibration_channel,
-                             encoding=encoding)
+                             encoding=encoding, temperature_channel=temperature_channel)
     text, _ = read_csv_text(path, encoding=encoding) if suffix in (".csv", ".txt") else sniff_text(path, encoding)
     if text is not None and looks_like_analyser(text):
         return analyser_capture(text, source=str(path), travel_channel=travel_channel, rate=rate,
@@ -134,16 +142,16 @@ def analyser_capture(text: str, *, source: str, travel_channel: str = "travel", 
 
 
 def read_comtrade(cfg_path: str | Path, *, travel_channel: str = "travel", vibration_channel: str = "vibration",
-                  encoding: str | None = None) -> Capture:
+                  encoding: str | None = None, temperature_channel: str | None = None) -> Capture:
     """Read a COMTRADE record and map its channels to ours."""
     record = read_record(cfg_path, encoding=encoding)
     return record_to_capture(record, source=str(cfg_path), travel_channel=travel_channel,
-                             vibration_channel=vibration_channel)
+                             vibration_channel=vibration_channel, temperature_channel=temperature_channel)
 
 
 def load_comtrade_bytes(cfg: bytes | str, dat: bytes | None = None, *, source: str = "upload",
                         travel_channel: str = "travel", vibration_channel: str = "vibration",
-                        encoding: str | None = None) -> Capture:
+                        encoding: str | None = None, temperature_channel: str | None = None) -> Capture:
     """Read a COMTRADE pair (or a CFF when ``dat`` is None) held in memory (uploads)."""
     if isinstance(cfg, str):
         cfg = cfg.encode("utf-8")
@@ -154,7 +162,7 @@ def load_comtrade_bytes(cfg: bytes | str, dat: bytes | None = None, *, source: s
         stem = name.rsplit(".", 1)[0]
         record = read_record_bytes(cfg, dat, name=name, dat_name=f"{stem}.dat", encoding=encoding)
     return record_to_capture(record, source=source, travel_channel=travel_channel,
-                             vibration_channel=vibration_channel)
+                             vibration_channel=vibration_channel, temperature_channel=temperature_channel)
 
 
 def record_start_time(record: Record) -> datetime | None:
@@ -169,7 +177,7 @@ def record_start_time(record: Record) -> datetime | None:
 
 
 def record_to_capture(record: Record, *, source: str, travel_channel: str = "travel",
-                      vibration_channel: str = "vibration") -> Capture:
+                      vibration_channel: str = "vibration", temperature_channel: str | None = None) -> Capture:
     names = [ch.name.strip() for ch in record.header.analog]
     idx_t = _channel_index(names, travel_channel, source)
     idx_v = _find(names, vibration_channel)
@@ -189,10 +197,36 @@ def record_to_capture(record: Record, *, source: str, travel_channel: str = "tra
                   start_time=record_start_time(record), source=source,
                   travel_limits=_channel_limits(ch_t, TRAVEL_UNITS), vibration_limits=vib_limits,
                   meta={"warnings": notes, "encoding": record.encoding, **_kept_meta(record.hdr_text)})
+    if temperature_channel:
+        temp = _temperature(record, names, temperature_channel, source, notes)
+        if temp is not None:
+            cap.meta["temperature_c"], cap.meta["temperature_source"] = temp, "channel"
     check_finite(cap)
     return cap
 
 
+def _temperature(record: Record, names, wanted: str, source: str, notes: list) -> float | None:
+    """Median of the temperature channel [C], or None with a note saying why (a missing or odd
+    temperature never makes the capture unusable: the operation is just not compensated)."""
+    i = _find(names, wanted)
+    if i is None:
+        notes.append(f"no temperature channel named '{wanted}': operation not temperature-compensated")
+        return None
+    unit = record.header.analog[i].unit.strip().lower()
+    if unit not in TEMPERATURE_UNITS:
+        notes.append(f"temperature channel '{wanted}' is in '{record.header.analog[i].unit}', expected "
+                     f"C or K: operation not temperature-compensated")
+        return None
+    factor, offset = TEMPERATURE_UNITS[unit]
+    values = record.uniform_channel(i) * factor + offset
+    values = values[np.isfinite(values)]
+    lo, hi = TEMPERATURE_PLAUSIBLE_C
+    t = float(np.median(values)) if values.size else float("nan")
+    if not lo <= t <= hi:
+        notes.append(f"temperature channel '{wanted}' reads {t:.4g} C, outside {lo:g}..{hi:g} C "
+                     f"(sensor fault?): operation not temperature-compensated")
+        return None
+    return round(t, 3)
 # What hvcb's own .hdr (service.acquisition.comtrade_writer) keeps of an analyser record that a
 # .cfg cannot say: the coil command (the fit's window start) and the analyser's header.
 _KEPT = ("command_s", "command_source", "motion_s", "analyser", "travel_map", "travel_channel", "travel_unit")

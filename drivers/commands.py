@@ -102,7 +102,7 @@ def run_serial(args) -> int:
 
 
 def _captures(breaker, scaling, n: int, seed: int):
-    from service.acquisition.synthetic import synthesize_capture
+    from drivers.synthetic import synthesize_capture
 
     from .emulators.sources import NOMINAL
     from .interface import SampleBlock

@@ -1,28 +1,224 @@
-"""Reading breaker files (TOML) into ``Breaker`` objects: the I/O edge of the mechanics."""
+"""Reading breaker files (TOML) into ``Breaker`` objects: the I/O edge of the mechanics.
+
+The file is validated by a pydantic model (``BreakerFileModel``) built from its text, so a
+file on disk, a breaker stored in the database and one sent to the API are read the same way,
+without a temporary folder. Every number has a physical range (docs/breaker-file.md); the
+name is an identifier; the text is capped in size and TOML nesting depth.
+"""
 
 from __future__ import annotations
 
+import math
 import tomllib
 from pathlib import Path
+from typing import Annotated
 
 import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
-from .mechanics.breaker import TABLE2_RANGES, Breaker
 from .breaker_travel import TravelMapError, travel_options
+from .mechanics.breaker import TABLE2_RANGES, Breaker
 from .mechanics.cam_profile import CamProfile, CamProfileError
+
+MAX_TEXT_BYTES = 200_000       # a breaker file is a page of TOML; the API refuses more
+MAX_CAM_BYTES = 5_000_000      # a cam table of ~100,000 rows
+NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9 _.:-]{0,79}$"  # shown in pages and SCADA names: no paths, no markup
+FILE_NAME_PATTERN = r"^[A-Za-z0-9_][A-Za-z0-9_.-]{0,120}$"  # a plain file name beside the breaker file
+CHANNEL_PATTERN = r"^[^\x00-\x1f\x7f]{1,64}$"
 
 
 class BreakerFileError(ValueError):
     """A breaker file is missing, unreadable or inconsistent."""
 
 
-_SECTIONS = {
-    "closing_spring": ("kC", "xC0", "d", "rC", "J1", "theta1_start"),
-    "opening_spring": ("kO", "xO0", "xO1", "rO", "J2", "TCf", "TOf"),
-    "arc_chamber": ("caec", "raec"),
-    "buffer": ("cb", "kb", "rb", "alpha0"),
-}
-_POSITIVE = ("kC", "xC0", "d", "rC", "J1", "kO", "xO1", "rO", "J2", "raec", "rb", "alpha0")
+def _num(lo: float, hi: float, *, lo_open: bool = True, desc: str = ""):
+    """A finite float in (lo, hi] (or [lo, hi] when ``lo_open`` is false)."""
+    bound = {"gt": lo} if lo_open else {"ge": lo}
+    return Annotated[float, Field(le=hi, allow_inf_nan=False, description=desc, **bound)]
+
+
+# Physical ranges: wide enough for any spring-operated mechanism from 12 kV to 1100 kV (the
+# reference 252 kV breaker sits two to three decades inside each), narrow enough to refuse a
+# typo of orders of magnitude or a sign. Lengths [m], stiffness [N/m], inertia [kg m^2].
+Stiffness = _num(0.0, 1e9, desc="N/m")
+Length = _num(0.0, 5.0, desc="m")
+Arm = _num(0.0, 2.0, desc="m")
+Inertia = _num(0.0, 1e3, desc="kg m^2")
+Torque = _num(0.0, 1e6, lo_open=False, desc="N m")
+Damping = _num(0.0, 1e8, lo_open=False, desc="N s/m")
+Angle = Annotated[float, Field(ge=-2 * math.pi, le=2 * math.pi, allow_inf_nan=False, description="rad")]
+
+
+class _Section(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class ClosingSpring(_Section):
+    kC: Stiffness
+    xC0: Length
+    d: Length
+    rC: Arm
+    J1: Inertia
+    theta1_start: Angle
+
+
+class OpeningSpring(_Section):
+    kO: Stiffness
+    xO0: _num(0.0, 5.0, lo_open=False, desc="m")
+    xO1: Length
+    rO: Arm
+    J2: Inertia
+    TCf: Torque
+    TOf: Torque
+
+
+class ArcChamber(_Section):
+    caec: Damping
+    raec: Arm
+
+
+class Buffer(_Section):
+    cb: Damping
+    kb: _num(0.0, 1e9, lo_open=False, desc="N/m")
+    rb: Arm
+    alpha0: _num(0.0, 2 * math.pi, desc="rad")
+
+
+class Cam(_Section):
+    profile: str = Field(pattern=FILE_NAME_PATTERN, description="cam table CSV beside the breaker file")
+
+
+class Travel(_Section):
+    """The model's stroke, and how a contact travel recorded in mm maps to it (breaker_travel)."""
+
+    stroke_rad: _num(0.0, 2 * math.pi, desc="rad") | None = None
+    record_unit: str | None = Field(None, max_length=8)
+    record_zero: str | None = Field(None, max_length=8)
+    mm_per_rad: float | str | None = None
+    table: str | None = Field(None, pattern=FILE_NAME_PATTERN, description="linkage CSV beside the breaker file")
+
+
+class UnknownDesign(_Section):
+    estimate: list[str] = Field(default_factory=list, max_length=8)
+
+
+class Channels(_Section):
+    travel: str = Field("travel", pattern=CHANNEL_PATTERN)
+    vibration: str = Field("vibration", pattern=CHANNEL_PATTERN)
+    temperature: str | None = Field(None, pattern=CHANNEL_PATTERN, description="ambient/mechanism [C]")
+
+
+class Acquisition(_Section):
+    sample_rate_hz: _num(100.0, 10e6, lo_open=False, desc="Hz") | None = None
+    travel_full_scale_rad: _num(0.0, 4 * math.pi, desc="rad") | None = None
+    vibration_full_scale_g: _num(0.0, 1e5, desc="g") | None = None
+    shock_threshold_g: _num(0.0, 1e5, desc="g") | None = None
+    motion_fraction: Annotated[float, Field(gt=0.0, lt=1.0)] | None = None
+
+
+class BreakerFileModel(BaseModel):
+    """A breaker file's content. A new section is one more field here (its own model)."""
+
+    model_config = ConfigDict(extra="forbid")
+    name: str | None = Field(None, pattern=NAME_PATTERN)
+    closing_spring: ClosingSpring
+    opening_spring: OpeningSpring
+    arc_chamber: ArcChamber
+    buffer: Buffer
+    cam: Cam | None = None  # required but for an [unknown_design] (no cam table: no closing model)
+    unknown_design: UnknownDesign | None = None
+    travel: Travel = Field(default_factory=Travel)
+    channels: Channels = Field(default_factory=Channels)
+    acquisition: Acquisition = Field(default_factory=Acquisition)
+    ranges: dict[str, tuple[float, float]] = Field(default_factory=dict)
+
+    @model_validator(mode="after")
+    def _cam_or_unknown(self):
+        if self.cam is None and self.unknown_design is None:
+            raise ValueError("[cam] profile is missing (only an [unknown_design] breaker goes without one)")
+        return self
+
+    @field_validator("ranges")
+    @classmethod
+    def _ranges(cls, v):
+        for name, (lo, hi) in v.items():
+            if name not in TABLE2_RANGES:
+                raise ValueError(f"unknown parameter {name!r} (known: {', '.join(TABLE2_RANGES)})")
+            if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+                raise ValueError(f"bad range for {name}: [{lo}, {hi}] (need two finite numbers, low < high)")
+        return v
+
+
+def _words(exc: ValidationError) -> str:
+    """pydantic's errors as one line: ``[section] key: what is wrong``."""
+    parts = []
+    for e in exc.errors()[:5]:
+        loc = [str(p) for p in e.get("loc", ())]
+        where = (f"[{loc[0]}] " + ".".join(loc[1:]) if len(loc) > 1 else (loc[0] if loc else "file")).strip()
+        msg = e.get("msg", "invalid").removeprefix("Value error, ")
+        if e.get("type") == "missing":
+            msg = "is missing" if len(loc) > 1 else "section is missing"
+        elif e.get("type") == "extra_forbidden":
+            msg = "is not a known key or section"
+        parts.append(f"{where}: {msg}")
+    more = len(exc.errors()) - 5
+    return "; ".join(parts) + (f" (and {more} more)" if more > 0 else "")
+
+
+def parse_breaker_text(text: str, *, source: str) -> BreakerFileModel:
+    """The validated content of a breaker file's text; ``source`` names it in messages."""
+    if len(text.encode("utf-8", "replace")) > MAX_TEXT_BYTES:
+        raise BreakerFileError(f"breaker file {source} is larger than {MAX_TEXT_BYTES} bytes")
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise BreakerFileError(f"breaker file {source} is not valid TOML: {exc}") from None
+    except RecursionError:
+        raise BreakerFileError(f"breaker file {source} is nested too deeply to be a breaker file") from None
+    try:
+        return BreakerFileModel.model_validate(data)
+    except ValidationError as exc:
+        raise BreakerFileError(f"breaker file {source}: {_words(exc)}") from None
+    except RecursionError:
+        raise BreakerFileError(f"breaker file {source} is nested too deeply to be a breaker file") from None
+
+
+def breaker_from_text(text: str, cam_table: str, *, source: str = "(text)", default_name: str = "breaker") -> Breaker:
+    """A ``Breaker`` from a breaker file's text and its cam table's text (the API and the
+    database hold both as text)."""
+    model = parse_breaker_text(text, source=source)
+    cam = cam_profile_from_text(cam_table, source=model.cam.profile) if model.cam is not None else None
+    return _build(model, cam, default_name=default_name, source=source, folder=None)
+
+
+def _build(model: BreakerFileModel, cam: CamProfile | None, *, default_name: str, source,
+           folder: Path | None) -> Breaker:
+    """``folder``: where files the breaker file names live (a linkage table); None for text."""
+    values = {**model.closing_spring.model_dump(), **model.opening_spring.model_dump(),
+              **model.arc_chamber.model_dump(), **model.buffer.model_dump()}
+    ranges = dict(TABLE2_RANGES)
+    ranges.update({k: (float(lo), float(hi)) for k, (lo, hi) in model.ranges.items()})
+    stroke = model.travel.stroke_rad
+    stroke = float(stroke if stroke is not None else (cam.stroke if cam is not None else 1.0))
+    channels = model.channels.model_dump(exclude_none=True)
+    sections = {"travel": model.travel.model_dump(exclude_none=True)}
+    if model.unknown_design is not None:
+        sections["unknown_design"] = model.unknown_design.model_dump()
+    try:
+        extra = travel_options(sections, (folder or Path(".")) / str(source), stroke, channels["travel"])
+    except TravelMapError as exc:
+        raise BreakerFileError(str(exc)) from None
+    channels["travel"] = extra.pop("travel_channel")
+    return Breaker(
+        name=model.name or default_name,
+        cam=cam,
+        stroke=stroke,
+        ranges=ranges,
+        channels=channels,
+        acquisition=model.acquisition.model_dump(exclude_none=True),
+        **extra,
+        **{k: float(v) for k, v in values.items()},
+    )
 
 
 def load_breaker(path: str | Path) -> Breaker:
@@ -31,51 +227,32 @@ def load_breaker(path: str | Path) -> Breaker:
     if not path.is_file():
         raise BreakerFileError(f"breaker file not found: {path}")
     try:
-        data = tomllib.loads(path.read_text())
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        text = path.read_text()
+    except UnicodeDecodeError as exc:
         raise BreakerFileError(f"breaker file {path} is not valid TOML: {exc}") from None
-    values = {}
-    for section, keys in _SECTIONS.items():
-        block = data.get(section)
-        if not isinstance(block, dict):
-            raise BreakerFileError(f"breaker file {path} has no [{section}] section")
-        for key in keys:
-            v = block.get(key)
-            if not isinstance(v, (int, float)) or not np.isfinite(v):
-                raise BreakerFileError(f"breaker file {path}: [{section}] {key} must be a number")
-            values[key] = float(v)
-    for key in _POSITIVE:
-        if values[key] <= 0:
-            raise BreakerFileError(f"breaker file {path}: {key} must be positive, got {values[key]}")
-    cam_block = data.get("cam", {})
-    cam_name = cam_block.get("profile")
-    if not cam_name and "unknown_design" not in data:  # an unknown design has no cam table
-        raise BreakerFileError(f"breaker file {path} has no [cam] profile")
-    cam = load_cam_profile(path.parent / cam_name) if cam_name else None
-    ranges = dict(TABLE2_RANGES)
-    for name, rng in data.get("ranges", {}).items():
-        if name not in ranges or len(rng) != 2 or not rng[0] < rng[1]:
-            raise BreakerFileError(f"breaker file {path}: bad range for {name}: {rng}")
-        ranges[name] = (float(rng[0]), float(rng[1]))
-    travel = data.get("travel", {})
-    channels = {"travel": "travel", "vibration": "vibration"}
-    channels.update({k: str(v) for k, v in data.get("channels", {}).items()})
-    stroke = float(travel.get("stroke_rad", cam.stroke if cam else 1.0))
+    model = parse_breaker_text(text, source=str(path))
+    cam = load_cam_profile(path.parent / model.cam.profile) if model.cam is not None else None
+    return _build(model, cam, default_name=path.stem, source=path.name, folder=path.parent)
+
+
+def cam_profile_from_text(text: str, *, source: str) -> CamProfile:
+    """A cam table CSV's text (columns ``camshaft_rad,output_shaft_rad``) as a profile."""
+    import io
+
+    if len(text.encode("utf-8", "replace")) > MAX_CAM_BYTES:
+        raise BreakerFileError(f"cam profile {source} is larger than {MAX_CAM_BYTES} bytes")
     try:
-        extra = travel_options(data, path, stroke, channels["travel"])
-    except TravelMapError as exc:
-        raise BreakerFileError(str(exc)) from None
-    channels["travel"] = extra.pop("travel_channel")
-    return Breaker(
-        name=str(data.get("name", path.stem)),
-        cam=cam,
-        stroke=stroke,
-        ranges=ranges,
-        channels=channels,
-        acquisition=dict(data.get("acquisition", {})),
-        **extra,
-        **values,
-    )
+        table = np.loadtxt(io.StringIO(text), delimiter=",", skiprows=1, ndmin=2)
+    except ValueError as exc:
+        raise BreakerFileError(f"cam profile {source} is not a two-column numeric CSV: {exc}") from None
+    if table.shape[1] != 2:
+        raise BreakerFileError(f"cam profile {source} must have exactly two columns")
+    if not np.isfinite(table).all():
+        raise BreakerFileError(f"cam profile {source} holds a NaN or infinite value")
+    try:
+        return CamProfile.from_table(table[:, 0], table[:, 1])
+    except CamProfileError as exc:
+        raise BreakerFileError(f"cam profile {source}: {exc}") from None
 
 
 def load_cam_profile(path: str | Path) -> CamProfile:
@@ -83,13 +260,4 @@ def load_cam_profile(path: str | Path) -> CamProfile:
     path = Path(path)
     if not path.is_file():
         raise BreakerFileError(f"cam profile not found: {path}")
-    try:
-        table = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
-    except ValueError as exc:
-        raise BreakerFileError(f"cam profile {path} is not a two-column numeric CSV: {exc}") from None
-    if table.shape[1] != 2:
-        raise BreakerFileError(f"cam profile {path} must have exactly two columns")
-    try:
-        return CamProfile.from_table(table[:, 0], table[:, 1])
-    except CamProfileError as exc:
-        raise BreakerFileError(f"cam profile {path}: {exc}") from None
+    return cam_profile_from_text(path.read_text(), source=str(path))

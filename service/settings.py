@@ -126,6 +126,47 @@ class RetentionSettings(BaseModel):
         return self.max_age_days is not None or self.max_per_breaker is not None
 
 
+class ServerSettings(BaseModel):
+    """``[server]``: how much the service takes on at once, and how long it waits for a slow
+    client (docs/security.md gives the reasons for each default)."""
+
+    model_config = {"extra": "forbid"}
+    threads: int = Field(16, ge=4, le=512, description="threads for request handlers (database pool = threads + 12)")
+    max_active_requests: int = Field(8, ge=1, le=512, description="page and API reads served at once; "
+                                     "must leave threads for /healthz, SCADA and key checks")
+    max_queued_requests: int = Field(1000, ge=0, le=100_000, description="more reads wait in a queue; "
+                                     "beyond it: 503 with Retry-After")
+    queue_timeout_s: float = Field(60.0, gt=0, description="a read waits this long for its turn, then 503")
+    max_request_bytes: int = Field(6 * 1024 * 1024, ge=1024, description="body limit of every request but uploads "
+                                   "(a breaker file with a 5 MB cam table fits)")
+    upload_parsers: int = Field(1, ge=1, le=16, description="uploads parsed at once (memory bound, docs/security.md)")
+    header_timeout_s: float = Field(10.0, gt=0, description="a request's headers must arrive within this time")
+    body_idle_timeout_s: float = Field(15.0, gt=0, description="longest pause between two pieces of a body")
+    body_timeout_s: float = Field(300.0, gt=0, description="a whole body must arrive within this time")
+    keepalive_s: int = Field(20, ge=1, le=300, description="an idle kept-alive connection is closed after this "
+                             "(long enough that a busy client does not reuse a connection as it closes)")
+    max_connections: int = Field(2048, ge=16, description="open connections and requests; beyond: 503")
+    trusted_proxies: str = Field("127.0.0.1", description="addresses whose X-Forwarded-For is believed "
+                                 "(the TLS reverse proxy); comma-separated")
+    auth_free_failures: int = Field(5, ge=1, description="wrong keys or sign-ins an address gets before throttling")
+    auth_delay_base_s: float = Field(0.5, gt=0, description="first throttling delay; doubles at each failure")
+    auth_delay_max_s: float = Field(60.0, gt=0, description="longest throttling delay")
+    auth_forget_s: float = Field(900.0, gt=0, description="an address without failures for this long starts afresh")
+
+    @model_validator(mode="after")
+    def _headroom(self):
+        if self.max_active_requests > self.threads - 4:
+            raise ValueError("[server] max_active_requests must leave at least 4 of the threads free "
+                             "(for /healthz, SCADA and key checks)")
+        return self
+
+    @property
+    def pool_size(self) -> int:
+        """Database connections: one per handler thread plus the background threads (monitor,
+        spool, DAQs, retention, trend warm-up, IEC 61850, diagnoses), so none waits for a connection."""
+        return self.threads + 12
+
+
 def acquisition_list(value, where: str = "settings"):
     """``[[acquisition]]`` (a list) as is; the old single ``[acquisition]`` table as a one-entry
     list, with a deprecation note. Entries with driver "none" are dropped."""
@@ -197,13 +238,16 @@ class Settings(BaseSettings):
         default_factory=list, description="the DAQs this service listens to ([[acquisition]], one per DAQ; "
                                           "the old single [acquisition] table is still read)")
     web: WebSettings = Field(default_factory=WebSettings, description="the web page ([web] table)")
+    server: ServerSettings = Field(default_factory=ServerSettings, description="limits and timeouts ([server] table)")
+    clock_tolerance_s: float = Field(86400.0, gt=0, description="a capture dated more than this after its arrival "
+                                     "is flagged clock suspect (docs/security.md)")
     retention: RetentionSettings = Field(default_factory=RetentionSettings,
                                          description="raw-capture retention ([retention] table)")
     alarms: dict = Field(default_factory=dict, description="drift detector settings, see docs/alarms.md "
                          "(service.alarms.settings.DriftSettings)")
     iec61850_port: int | None = Field(None, ge=1, le=65535,
                                       description="IEC 61850 (MMS) server port; empty = off (102 is the "
-                                      "standard port and needs privileges), see README")
+                                      "standard port and needs privileges), see docs/iec61850.md")
 
     @field_validator("iec61850_port", mode="before")
     @classmethod

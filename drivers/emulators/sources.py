@@ -1,7 +1,7 @@
 """Sample sources for the emulators: a short synthetic stream with idle time and operations.
 
-The long scripted streams with truth live in ``service.acquisition.stream_script``; this module
-is the small, dependency-free source the driver tests and the CLI fall back on.
+The long scripted streams with truth live in ``drivers.stream_script``; this module
+is the small source the driver tests use.
 """
 
 from __future__ import annotations
@@ -10,7 +10,8 @@ from collections.abc import Iterator, Sequence
 
 import numpy as np
 
-from service.acquisition.synthetic import synthesize_capture
+from drivers import stream_script
+from drivers.synthetic import synthesize_capture
 
 from ..interface import SampleBlock
 
@@ -61,26 +62,14 @@ def emulator_source(breaker, *, seed: int, duration_s: float, fs: float,
     """The CLI's stream.
 
     ``script="acceptance"``: the issue's 60 s acceptance stream (12 operations, lone shocks, a
-    noise burst, a clipped shock) from ``service.acquisition.stream_script``. ``"alternating"``:
+    noise burst, a clipped shock) from ``drivers.stream_script``. ``"alternating"``:
     openings and closings every second for ``duration_s``. ``return_shape`` (``model``,
-    ``critical``, ``oscillating``) is how openings return from overtravel to rest. Falls back on
-    ``synthetic_stream`` (model return only) when the scripted streams are not available.
+    ``critical``, ``oscillating``) is how openings return from overtravel to rest.
     """
     if script not in ("alternating", "acceptance"):
         raise ValueError(f"script must be 'alternating' or 'acceptance', got {script!r}")
-    try:
-        from service.acquisition import stream_script
-    except ImportError:
-        stream_script = None
-    if stream_script is not None:
-        if script == "acceptance":
-            return stream_script.acceptance_script(breaker, seed=seed, fs=fs,
-                                                   return_shape=return_shape).blocks(4096)
-        return stream_script.ScriptedStream(breaker, duration_s=duration_s, seed=seed, fs=fs,
-                                            return_shape=return_shape).blocks(4096)
-    if return_shape != "model":
-        raise ValueError(f"the return shape {return_shape!r} needs service.acquisition.stream_script")
-    per_op = 0.6
-    n_ops = max(1, int(duration_s // per_op))
-    ops = ["open" if i % 2 == 0 else "close" for i in range(n_ops)]
-    return synthetic_stream(breaker, operations=ops, idle_s=0.5, seed=seed, fs=fs)
+    if script == "acceptance":
+        return stream_script.acceptance_script(breaker, seed=seed, fs=fs,
+                                               return_shape=return_shape).blocks(4096)
+    return stream_script.ScriptedStream(breaker, duration_s=duration_s, seed=seed, fs=fs,
+                                        return_shape=return_shape).blocks(4096)

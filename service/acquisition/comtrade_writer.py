@@ -15,13 +15,13 @@ from __future__ import annotations
 import json
 import math
 import os
-import tempfile
 from datetime import datetime, timedelta, timezone
 from pathlib import Path
 
 import numpy as np
 
 from drivers.capture import Capture
+from service.durable import fsync_dir, write_durably
 
 FORMATS = ("ASCII", "BINARY", "BINARY32", "FLOAT32")
 _INT_MAX = {"ASCII": 32767, "BINARY": 32767, "BINARY32": 2_147_483_647}
@@ -98,8 +98,8 @@ def write_comtrade(capture: Capture, directory: str | Path, name: str, *, format
     directory.mkdir(parents=True, exist_ok=True)
     cfg_path = directory / f"{name}.cfg"
     for suffix, data in ((".hdr", hdr_text.encode()), (".dat", dat_bytes), (".cfg", cfg_text.encode("ascii"))):
-        _durable_write(directory / f"{name}{suffix}", data)
-    _fsync_dir(directory)
+        write_durably(directory / f"{name}{suffix}", data, sync_dir=False)
+    fsync_dir(directory)  # once for the three renames
     return cfg_path
 
 
@@ -150,36 +150,6 @@ def _header(capture: Capture) -> dict:
     """Free-text .hdr content: what the .cfg cannot say (flags, window, stream position)."""
     return {"source": capture.source, "flags": list(capture.flags),
             "first_sample_index": int(capture.first_sample_index), "meta": capture.meta}
-
-
-def _durable_write(path: Path, data: bytes) -> None:
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        os.fchmod(fd, 0o644)  # mkstemp makes 0600; captures are meant to be read by the service
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
-
-
-def _fsync_dir(directory: Path) -> None:
-    try:
-        fd = os.open(directory, os.O_RDONLY)
-    except OSError:  # some platforms cannot open directories; the files are synced already
-        return
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass
-    finally:
-        os.close(fd)
 
 
 def _stamp(t: datetime) -> str:

@@ -33,7 +33,7 @@ def register(subparsers) -> None:
 
 
 def _rate(text):
-    from service.estimation.commands import rate_hz
+    from service.arguments import rate_hz
 
     return rate_hz(text)
 

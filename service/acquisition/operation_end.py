@@ -7,17 +7,16 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.ndimage import maximum_filter1d, minimum_filter1d
+from scipy.ndimage import maximum_filter1d, minimum_filter1d, uniform_filter1d
 
 
 def moving_average(x: np.ndarray, w: int) -> np.ndarray:
-    """Centred moving average of length ``w``; the ends use the nearest full window."""
-    if w <= 1 or x.size < w:
-        return x.astype(float, copy=True)
-    c = np.concatenate(([0.0], np.cumsum(x, dtype=float)))
-    core = (c[w:] - c[:-w]) / w
-    left = (w - 1) // 2
-    return np.concatenate((np.full(left, core[0]), core, np.full(x.size - core.size - left, core[-1])))
+    """Centred moving average of length ``w``, the ends padded with the edge sample (scipy's
+    ``uniform_filter1d``, ``mode="nearest"``: the convention of every moving average in hvcb)."""
+    x = np.asarray(x, dtype=float)
+    if w <= 1:
+        return x.copy()
+    return uniform_filter1d(x, w, mode="nearest")
 
 
 def opening_end(T, M, S, r: int, settings, fs: float):

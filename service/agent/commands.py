@@ -18,7 +18,7 @@ def cmd_agent(args) -> int:
 
     from pydantic import ValidationError
 
-    from service.cli import UserError
+    from service.errors import UserError
 
     from .runner import Agent
     from .settings import load_agent_settings

@@ -23,7 +23,8 @@ from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
 
-from service.storage.spool import _fsync_dir, capture_digest
+from service.durable import fsync_dir, write_durably
+from service.storage.spool import capture_digest
 
 log = logging.getLogger("hvcb.agent.outbox")
 
@@ -126,13 +127,7 @@ class Outbox:
                                 captured_at.astimezone(timezone.utc).isoformat())
             self._next_seq += 1
             path = self.directory / f"{entry.seq:012d}.json"
-            tmp = path.with_suffix(".tmp")
-            with open(tmp, "w") as fh:
-                json.dump(entry.__dict__, fh)
-                fh.flush()
-                os.fsync(fh.fileno())
-            os.replace(tmp, path)
-            _fsync_dir(self.directory)
+            write_durably(path, json.dumps(entry.__dict__))
             self._entries[entry.seq] = entry
             self._bytes += size
         self.changed.set()
@@ -164,7 +159,7 @@ class Outbox:
 
     def _forget(self, entry: OutboxEntry) -> None:
         (self.directory / f"{entry.seq:012d}.json").unlink(missing_ok=True)
-        _fsync_dir(self.directory)
+        fsync_dir(self.directory)
         with self._lock:
             if self._entries.pop(entry.seq, None) is not None:
                 self._bytes -= entry.size

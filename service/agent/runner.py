@@ -78,7 +78,7 @@ class _AgentCollector:
         self.agent = agent
 
     def collect(self):
-        from service.api.metrics import daq_state_metrics
+        from service.acquisition.daq_metrics import daq_state_metrics
 
         a, ob, fw = self.agent, self.agent.outbox, self.agent.forwarder
         yield GaugeMetricFamily("hvcb_agent_spool_depth", "captures waiting to be forwarded", value=len(ob))

@@ -4,25 +4,16 @@ Pure: the service persists ``DriftState.to_dict()`` per (breaker, parameter) and
 ``AlarmEvent``s that ``update``, ``acknowledge`` and ``reset_baseline`` return.
 """
 
-from service.alarms.drift import (
-    AlarmEvent,
-    Baseline,
-    DriftState,
-    FitObservation,
-    acknowledge,
-    fit_baseline,
-    health_status,
-    normal_score,
-    observations_from_fit,
-    replay,
-    reset_baseline,
-    standardised_deviation,
-    update,
-)
+from service.alarms.actions import (acknowledge, health_status, observations_from_fit, replay,
+                                    reset_baseline)
+from service.alarms.baseline import Model, fit_model
+from service.alarms.drift import (AlarmEvent, Baseline, DriftState, FitObservation, check_temperature,
+                                  normal_score, t_for_score, update)
 from service.alarms.settings import DEFAULT_WATCHED, DIRECTIONS, DriftSettings
 
 __all__ = [
-    "AlarmEvent", "Baseline", "DriftSettings", "DriftState", "FitObservation", "DEFAULT_WATCHED",
-    "DIRECTIONS", "acknowledge", "fit_baseline", "health_status", "normal_score",
-    "observations_from_fit", "replay", "reset_baseline", "standardised_deviation", "update",
+    "AlarmEvent", "Baseline", "DriftSettings", "DriftState", "FitObservation", "Model",
+    "DEFAULT_WATCHED", "DIRECTIONS", "acknowledge", "check_temperature", "fit_model",
+    "health_status", "normal_score", "observations_from_fit", "replay", "reset_baseline",
+    "t_for_score", "update",
 ]

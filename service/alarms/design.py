@@ -1,15 +1,18 @@
 """Average run length (ARL) of the winsorised CUSUM, for choosing k, h and z_cap.
 
-Brook & Evans (1972) Markov-chain approximation, with known baseline parameters: the in-control
-ARL (shift 0) is the mean number of fits between false alarms, the out-of-control ARL the mean
-detection delay for a step shift. The effect of a baseline estimated from only n fits is not in
-here; docs/alarms.md gives it by simulation (tests/alarms/simulate_rates.py).
+Brook & Evans (1972) Markov-chain approximation: the in-control ARL (shift 0) is the mean number
+of fits between false alarms, the out-of-control ARL the mean detection delay for a step shift.
+The detector feeds the CUSUM self-starting scores (Hawkins 1987), which are independent N(0, 1)
+while the breaker is in control even though its baseline is estimated, so the known-parameter ARL
+computed here is the design ARL; bench/alarm_rates.py checks it by simulation.
 """
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
-from scipy import special
+from scipy import optimize, special
 
 
 def _increment_cdf(x: np.ndarray, shift: float, k: float, z_cap: float) -> np.ndarray:
@@ -44,3 +47,20 @@ def two_sided_arl(shift: float, *, k: float, h: float, z_cap: float = np.inf) ->
     up = cusum_arl(shift, k=k, h=h, z_cap=z_cap)
     down = cusum_arl(-shift, k=k, h=h, z_cap=z_cap)
     return 1.0 / (1.0 / up + 1.0 / down)
+
+
+@functools.lru_cache(maxsize=64)
+def threshold_for_arl(arl: float, *, k: float, z_cap: float = np.inf) -> float:
+    """Decision threshold h [z] whose one-sided in-control ARL is ``arl`` [fits] (Brook-Evans).
+
+    The thresholds of the detector come from here, not from tuning: docs/alarms.md.
+    """
+    if not arl > 1:
+        raise ValueError(f"target ARL must exceed 1 fit, got {arl}")
+    lo, hi = 1e-3, 1.0
+    while cusum_arl(0.0, k=k, h=hi, z_cap=z_cap) < arl:
+        lo, hi = hi, hi * 2
+        if hi > 100:
+            raise ValueError(f"no threshold below 100 reaches an ARL of {arl:g} with k = {k}")
+    return float(optimize.brentq(lambda h: cusum_arl(0.0, k=k, h=h, z_cap=z_cap) - arl, lo, hi,
+                                 xtol=1e-6))

@@ -1,17 +1,21 @@
-"""CUSUM drift detection on fitted mechanism parameters, and the alarm lifecycle.
+"""Self-starting CUSUM drift detection on fitted mechanism parameters, and the alarm lifecycle.
 
-Pure: no I/O, no wall clock. The caller owns the loop — it persists one ``DriftState`` per
+Pure: no I/O, no wall clock. The caller owns the loop: it persists one ``DriftState`` per
 (breaker, watched parameter), feeds good fits in operation order through ``update`` and stores
-the ``AlarmEvent``s it returns. The method and its tuning are in docs/alarms.md.
+the ``AlarmEvent``s it returns. The method and its design are in docs/alarms.md.
 
-    z_i  = (x_i - m) / sqrt(s^2 (1 + 1/n) + se_i^2)           standardised deviation [-]
-    u_i  = Phi^-1(T_{n-1}(z_i))                                normal score of the predictive t
+    (mean_i, V_i) = baseline model's prediction of fit i at its temperature (baseline.py)
+    z_i  = (x_i - mean_i) / sqrt(V_i)                          predictive t, dof of the window
+    u_i  = Phi^-1(T_dof(z_i))                                  self-starting score (Hawkins 1987)
     zc_i = clip(u_i, -z_cap, z_cap)                            one fit adds at most z_cap - k
     (a fit with |u_i| > z_cap and no neighbour leaning the same way is an outlier: ignored)
     S+_i = min(S_cap, max(0, S+_{i-1} + zc_i - k))             rising drift
     S-_i = min(S_cap, max(0, S-_{i-1} - zc_i - k))             falling drift
 
-m, s, n: the breaker's baseline mean, sd and size; se_i: the fit's standard error.
+The baseline window keeps learning (fit i joins it, winsorised at z_cap, when the CUSUM was at
+zero before fit i and no alarm is active) until it holds ``baseline_max`` fits, then freezes.
+While it learns, the scores u_i of an in-control breaker are independent N(0, 1), so the
+known-parameter run length (design.py) is the run length of this breaker too.
 """
 
 from __future__ import annotations
@@ -19,17 +23,18 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass, replace
 from datetime import datetime, timezone
-from typing import Any, Iterable, Mapping
+from typing import Any, Mapping
 
-import numpy as np
 from scipy import special
 
+from service.alarms.baseline import Model, fit_model, screen
 from service.alarms.settings import DriftSettings
 
 Z95 = 1.959963984540054  # two-sided 95 % normal quantile: CI half-width = Z95 * stderr
-MAD_TO_SD = 1.482602218505602  # MAD of a normal sample -> its sd
 LEVELS = ("none", "warning", "alarm")
-STATE_VERSION = 1
+STATE_VERSION = 2
+# Plausible temperature of a breaker mechanism [C]: outside this a reading is a sensor fault.
+TEMPERATURE_RANGE_C = (-60.0, 100.0)
 
 
 def _utc_text(t: datetime) -> str:
@@ -46,6 +51,17 @@ def _finite(name: str, value: Any) -> float:
     return out
 
 
+def check_temperature(value: Any, where: str = "temperature_c") -> float | None:
+    """A temperature [C] checked for sense, or None; ValueError in words otherwise."""
+    if value is None:
+        return None
+    t = _finite(where, value)
+    lo, hi = TEMPERATURE_RANGE_C
+    if not lo <= t <= hi:
+        raise ValueError(f"{where} {t:g} C is outside {lo:g}..{hi:g} C (a sensor fault, or not Celsius)")
+    return t
+
+
 @dataclass(frozen=True)
 class FitObservation:
     """One good fit of one watched parameter.
@@ -56,6 +72,7 @@ class FitObservation:
     ci95 : (lo, hi) | None — 95 % confidence interval of the fit [same unit]
     stderr : float | None — standard error of the fit [same unit]; used when ci95 is None.
         With neither, the fit's own uncertainty counts as zero.
+    temperature : float | None — ambient or mechanism temperature of the operation [C]
     """
 
     operation_id: int | str
@@ -63,6 +80,7 @@ class FitObservation:
     value: float
     ci95: tuple[float, float] | None = None
     stderr: float | None = None
+    temperature: float | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.time, datetime) or self.time.tzinfo is None:
@@ -78,6 +96,7 @@ class FitObservation:
             if se < 0:
                 raise ValueError(f"stderr must be >= 0, got {se}")
             object.__setattr__(self, "stderr", se)
+        object.__setattr__(self, "temperature", check_temperature(self.temperature, "temperature"))
 
     @property
     def se(self) -> float:
@@ -89,15 +108,17 @@ class FitObservation:
     def to_dict(self) -> dict[str, Any]:
         return {"operation_id": self.operation_id, "time": _utc_text(self.time),
                 "value": self.value, "ci95": list(self.ci95) if self.ci95 else None,
-                "stderr": self.se}
+                "stderr": self.se, "temperature": self.temperature}
 
 
 @dataclass(frozen=True)
 class Baseline:
-    """A breaker's healthy reference for one parameter.
+    """Summary of a breaker's learnt baseline of one parameter (for evidence and the page).
 
-    mean, sd : screened mean and sd of the baseline fits [unit of the parameter]
-    n : fits kept after screening; operation_ids: all baseline fits; excluded_ids: screened out.
+    mean, sd : expected value (at the window's mean temperature) and run-to-run sd [unit]
+    n : fits in the window; operation_ids: the window's fits; excluded_ids: screened out
+    slope : temperature slope [unit/K] (0 without compensation); t_mean, t_span [C, K]
+    compensated : the model uses temperature; frozen : the window has stopped learning
     """
 
     mean: float
@@ -105,38 +126,18 @@ class Baseline:
     n: int
     operation_ids: tuple
     excluded_ids: tuple = ()
+    slope: float = 0.0
+    slope_sd: float = 0.0
+    t_mean: float | None = None
+    t_span: float = 0.0
+    compensated: bool = False
+    frozen: bool = False
 
     def to_dict(self) -> dict[str, Any]:
-        return {"mean": self.mean, "sd": self.sd, "n": self.n,
-                "operation_ids": list(self.operation_ids),
-                "excluded_operation_ids": list(self.excluded_ids)}
-
-
-def fit_baseline(operation_ids: Iterable, values: Iterable[float],
-                 settings: DriftSettings) -> Baseline:
-    """Baseline from the first good fits: screen gross outliers, then mean and sd of the rest.
-
-    The MAD only screens out outliers; the mean and sd of the kept fits are far more efficient
-    at n = 20 (MAD-sd has ~2.7x the variance), and an underestimated sd is what breeds false
-    alarms. The sd never falls below ``sd_floor_rel * |mean|``.
-    """
-    ids = tuple(operation_ids)
-    x = np.asarray(list(values), dtype=float)
-    median = float(np.median(x))
-    floor = settings.sd_floor_rel * max(abs(median), 1e-12)
-    mad_sd = max(MAD_TO_SD * float(np.median(np.abs(x - median))), floor)
-    # A fit is screened out only if it is far off in both senses: > screen_sigmas MAD-sigmas
-    # and > screen_min_rel. The MAD of 20 fits is itself noisy; when it comes out small, a pure
-    # MAD screen drops healthy fits and the sd collapses (false alarms). Keeping a doubtful fit
-    # errs the safe way: a wider baseline, slightly slower detection.
-    limit = max(settings.screen_sigmas * mad_sd, settings.screen_min_rel * abs(median))
-    keep = np.abs(x - median) <= limit
-    kept = x[keep]
-    sd = float(np.std(kept, ddof=1)) if kept.size > 1 else mad_sd
-    mean = float(np.mean(kept))
-    return Baseline(mean=mean, sd=max(sd, settings.sd_floor_rel * max(abs(mean), 1e-12)),
-                    n=int(kept.size), operation_ids=ids,
-                    excluded_ids=tuple(i for i, k in zip(ids, keep) if not k))
+        out = asdict(self)
+        out["operation_ids"] = list(self.operation_ids)
+        out["excluded_operation_ids"] = list(out.pop("excluded_ids"))
+        return out
 
 
 @dataclass(frozen=True)
@@ -169,6 +170,9 @@ class DriftState:
     """Detector state of one watched parameter of one breaker; persist it with ``to_dict``.
 
     phase : "baseline" while the first ``baseline_n`` good fits are collected, then "monitoring"
+    collected : ((operation_id, value, temperature, se), ...) while in the baseline phase
+    window : the baseline's fits, same tuples (values winsorised); model : its predictive model
+    frozen : the window has stopped learning
     s_rising, s_falling : the two one-sided CUSUMs [z]
     run_rising, run_falling : operation ids since each CUSUM last left zero (newest last)
     level : "none" | "warning" | "alarm"; episode: number of the current or last alarm
@@ -176,8 +180,11 @@ class DriftState:
 
     parameter: str
     phase: str = "baseline"
-    collected: tuple = ()  # ((operation_id, value), ...) while in the baseline phase
-    baseline: Baseline | None = None
+    collected: tuple = ()
+    window: tuple = ()
+    excluded_ids: tuple = ()
+    model: Model | None = None
+    frozen: bool = False
     s_rising: float = 0.0
     s_falling: float = 0.0
     run_rising: tuple = ()
@@ -194,6 +201,8 @@ class DriftState:
     last_time: datetime | None = None
     last_z: float | None = None
     last_score: float | None = None
+    last_expected: float | None = None
+    last_band: float | None = None
     held: tuple | None = None  # (operation_id, score): an unsupported extreme fit, on hold
     outliers_ignored: int = 0
     fits_monitored: int = 0
@@ -213,12 +222,28 @@ class DriftState:
     def active(self) -> bool:
         return self.level != "none"
 
+    @property
+    def compensated(self) -> bool:
+        """The baseline model uses the temperature."""
+        return self.model is not None and self.model.compensated
+
+    @property
+    def baseline(self) -> Baseline | None:
+        m = self.model
+        if m is None:
+            return None
+        return Baseline(mean=m.centre, sd=m.sd, n=m.n, operation_ids=tuple(w[0] for w in self.window),
+                        excluded_ids=self.excluded_ids, slope=m.slope, slope_sd=math.sqrt(m.slope_var),
+                        t_mean=m.t_mean, t_span=m.t_span, compensated=m.compensated, frozen=self.frozen)
+
     def to_dict(self) -> dict[str, Any]:
         """JSON-able dict (no NaN); ``DriftState.from_dict`` is its inverse."""
         out = {f: getattr(self, f) for f in self.__dataclass_fields__}
         out["version"] = STATE_VERSION
-        out["collected"] = [list(c) for c in self.collected]
-        out["baseline"] = self.baseline.to_dict() if self.baseline else None
+        for key in ("collected", "window"):
+            out[key] = [list(c) for c in out[key]]
+        out["excluded_ids"] = list(self.excluded_ids)
+        out["model"] = self.model.to_dict() if self.model else None
         out["run_rising"] = list(self.run_rising)
         out["run_falling"] = list(self.run_falling)
         out["held"] = list(self.held) if self.held is not None else None
@@ -228,15 +253,16 @@ class DriftState:
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> "DriftState":
+        if data.get("version") == 1:
+            data = _from_version_1(data)
         if data.get("version") != STATE_VERSION:
             raise ValueError(f"drift state version {data.get('version')!r} is not supported "
                              f"(expected {STATE_VERSION}); reset the baseline or replay the history")
         d = {k: v for k, v in data.items() if k != "version"}
-        d["collected"] = tuple(tuple(c) for c in d.get("collected", ()))
-        b = d.get("baseline")
-        d["baseline"] = None if b is None else Baseline(
-            mean=b["mean"], sd=b["sd"], n=b["n"], operation_ids=tuple(b["operation_ids"]),
-            excluded_ids=tuple(b.get("excluded_operation_ids", ())))
+        for key in ("collected", "window"):
+            d[key] = tuple(tuple(c) for c in d.get(key, ()))
+        d["excluded_ids"] = tuple(d.get("excluded_ids", ()))
+        d["model"] = Model.from_dict(d["model"]) if d.get("model") else None
         d["run_rising"] = tuple(d.get("run_rising", ()))
         d["run_falling"] = tuple(d.get("run_falling", ()))
         d["held"] = tuple(d["held"]) if d.get("held") is not None else None
@@ -249,35 +275,83 @@ class DriftState:
         return cls(**d)
 
 
-def standardised_deviation(obs: FitObservation, baseline: Baseline) -> float:
-    """z of one fit against the baseline [-]: baseline spread, baseline-mean error and fit CI."""
-    var = baseline.sd ** 2 * (1.0 + 1.0 / baseline.n) + obs.se ** 2
-    return (obs.value - baseline.mean) / math.sqrt(var)
+def _from_version_1(data: Mapping[str, Any]) -> dict[str, Any]:
+    """A state of the frozen-20-fit detector (version 1) as a version-2 state: its baseline
+    stays frozen (v1 kept only mean, sd and n, not the fits to learn from) and its CUSUM, level
+    and episode carry on, so stored alarms stay in step. A baseline reset starts the learning
+    baseline."""
+    d = {k: v for k, v in data.items() if k not in ("baseline", "version")}
+    b = data.get("baseline")
+    d["version"] = STATE_VERSION
+    d["collected"] = [[c[0], c[1], None, 0.0] for c in data.get("collected", ())]
+    if b is not None:
+        d["model"] = Model(n=int(b["n"]), dof=max(int(b["n"]) - 1, 1), centre=float(b["mean"]),
+                           slope=0.0, slope_var=0.0, sd=float(b["sd"]), se2_mean=0.0).to_dict()
+        d["window"] = [[i, float(b["mean"]), None, 0.0] for i in b.get("operation_ids", ())]
+        d["excluded_ids"] = list(b.get("excluded_operation_ids", ()))
+        d["frozen"] = True
+    return d
 
 
-def normal_score(z: float, n: int) -> float:
-    """Map z, Student-t with n - 1 degrees of freedom, to the standard normal score [-].
+def normal_score(z: float, dof: int) -> float:
+    """Map z, Student-t with ``dof`` degrees of freedom, to the standard normal score [-].
 
-    With a baseline of only n ~ 20 fits, a new fit's z follows the predictive t, not a normal:
-    its tails are heavier, and treating it as normal roughly doubles the false alarms.
+    The predictive t of a new fit against a baseline of n fits (Hawkins 1987): its tails are
+    heavier than a normal's, and treating it as normal multiplies the false alarms.
     """
-    if n < 2:
+    if dof < 1:
         return z
     # isf of the upper tail keeps precision far out where cdf rounds to 1.
-    return math.copysign(-float(special.ndtri(special.stdtr(n - 1, -abs(z)))), z)
+    return math.copysign(-float(special.ndtri(special.stdtr(dof, -abs(z)))), z)
+
+
+def t_for_score(u: float, dof: int) -> float:
+    """Inverse of ``normal_score``: the predictive t whose normal score is ``u`` [-]."""
+    return -float(special.stdtrit(dof, special.ndtr(-u)))
+
+
+def _model(window: tuple, parameter: str, settings: DriftSettings,
+           previous: Model | None = None) -> Model:
+    _, values, temps, ses = zip(*window)
+    return fit_model(values, temps, ses, slope_range=settings.slope_range(parameter),
+                     sd_floor_rel=settings.sd_floor_rel, previous=previous)
+
+
+def _start_monitoring(state: DriftState, collected: tuple, settings: DriftSettings) -> DriftState:
+    """The first baseline: screen gross outliers out of the collected fits, fit the model."""
+    ids, values, temps, _ = zip(*collected)
+    keep = screen(values, temps, slope_range=settings.slope_range(state.parameter),
+                  screen_sigmas=settings.screen_sigmas, screen_min_rel=settings.screen_min_rel,
+                  sd_floor_rel=settings.sd_floor_rel)
+    window = tuple(c for c, k in zip(collected, keep) if k)
+    return replace(state, phase="monitoring", collected=(), window=window,
+                   excluded_ids=tuple(i for i, k in zip(ids, keep) if not k),
+                   model=_model(window, state.parameter, settings))
+
+
+def _frozen(window: tuple, model: Model, settings: DriftSettings) -> bool:
+    """The window stops learning once it is big enough and, when compensated, has spanned
+    enough temperature; it never grows past ``baseline_hard_max``."""
+    n = len(window)
+    if n >= settings.baseline_hard_max:
+        return True
+    return n >= settings.baseline_max and (not model.compensated
+                                           or model.t_span >= settings.temperature_span_k)
 
 
 def _evidence(state: DriftState, obs: FitObservation, z: float,
               settings: DriftSettings) -> dict[str, Any]:
     falling = state.s_falling >= state.s_rising
     b = state.baseline
+    expected = state.last_expected
     return {
         "parameter": state.parameter,
         "watched_direction": settings.direction(state.parameter),
         "drift_direction": "falling" if falling else "rising",
         "baseline": b.to_dict(),
-        "current": {**obs.to_dict(), "z": z,
-                    "change_rel": (obs.value - b.mean) / b.mean if b.mean else None},
+        "temperature_compensated": b.compensated,
+        "current": {**obs.to_dict(), "z": z, "expected": expected, "band_sd": state.last_band,
+                    "change_rel": (obs.value - expected) / expected if expected else None},
         "statistic": state.statistic,
         "thresholds": {"k": settings.k, "warning": settings.h_warning,
                        "alarm": settings.h_alarm, "clear": settings.clear_level},
@@ -309,35 +383,52 @@ def update(state: DriftState, obs: FitObservation,
         raise ValueError(f"fit of operation {obs.operation_id} ({_utc_text(obs.time)}) is older "
                          f"than the last one ({_utc_text(state.last_time)}); replay the history")
     state = replace(state, last_operation_id=obs.operation_id, last_time=obs.time)
+    entry = (obs.operation_id, obs.value, obs.temperature, obs.se)
 
     if state.phase == "baseline":
-        collected = state.collected + ((obs.operation_id, obs.value),)
+        collected = state.collected + (entry,)
         if len(collected) < settings.baseline_n:
             return replace(state, collected=collected), []
-        ids, values = zip(*collected)
-        return replace(state, phase="monitoring", collected=(),
-                       baseline=fit_baseline(ids, values, settings)), []
+        return _start_monitoring(state, collected, settings), []
 
-    z = standardised_deviation(obs, state.baseline)
-    u = normal_score(z, state.baseline.n)
+    model = state.model
+    expected, var = model.predict(obs.temperature, obs.se)
+    band = math.sqrt(var)
+    z = (obs.value - expected) / band
+    u = normal_score(z, model.dof)
     # Persistence for extreme fits: a score beyond z_cap counts only when a neighbouring fit
-    # leans the same way (|score| >= k) or that side is already at warning level. An isolated one is held for one fit, then dropped, so a
-    # single bad fit adds nothing; a real step is late by one fit; a ramp is not delayed.
+    # backs it: it leans the same way (|score| >= k) and lies within z_cap of it (a ramp or a
+    # step moves the scores together; a gross fit error jumps away from its neighbours), or
+    # that side is already at warning level. An isolated one is held for one fit, then dropped,
+    # so a single bad fit adds nothing; a real step is late by one fit; a ramp is not delayed.
+    def backs(a: float | None, b: float) -> bool:
+        return a is not None and a * b > 0 and abs(a) >= settings.k and abs(a - b) <= settings.z_cap
+
     to_apply, held, ignored = [], None, state.outliers_ignored
     if state.held is not None:
         held_id, held_u = state.held
-        if math.copysign(1.0, held_u) == math.copysign(1.0, u) and abs(u) >= settings.k:
+        if backs(u, held_u):
             to_apply.append((held_id, held_u))
         else:
             ignored += 1
-    prev = state.last_score
     side = state.s_rising if u > 0 else state.s_falling
-    supported = (prev is not None and prev * u > 0 and abs(prev) >= settings.k) \
-        or side >= settings.h_warning  # already a warning-level excursion that way
+    supported = backs(state.last_score, u) or side >= settings.h_warning
     if abs(u) > settings.z_cap and not supported:
         held = (obs.operation_id, u)
     else:
         to_apply.append((obs.operation_id, u))
+
+    # Learning while quiet: the decision uses only the CUSUM before this fit, which does not
+    # depend on this fit's value, so the window's mean and sd stay unbiased in control; once a
+    # drift lifts the CUSUM, its fits stop entering the baseline.
+    quiet = state.statistic == 0.0 and state.level == "none" and state.held is None
+    window, new_model, frozen = state.window, model, state.frozen
+    if quiet and not frozen:
+        lim = t_for_score(settings.z_cap, model.dof) * band  # Huber-type winsorised update
+        value = min(expected + lim, max(expected - lim, obs.value))
+        window = window + ((obs.operation_id, value, obs.temperature, obs.se),)
+        new_model = _model(window, state.parameter, settings, previous=model)
+        frozen = _frozen(window, new_model, settings)
 
     s_r, run_r, len_r = state.s_rising, state.run_rising, state.run_length_rising
     s_f, run_f, len_f = state.s_falling, state.run_falling, state.run_length_falling
@@ -351,8 +442,9 @@ def update(state: DriftState, obs: FitObservation,
                                             operation_id, settings)
     state = replace(state, s_rising=s_r, run_rising=run_r, run_length_rising=len_r,
                     s_falling=s_f, run_falling=run_f, run_length_falling=len_f,
-                    last_z=z, last_score=u, held=held, outliers_ignored=ignored,
-                    fits_monitored=state.fits_monitored + 1)
+                    last_z=z, last_score=u, last_expected=expected, last_band=band, held=held,
+                    outliers_ignored=ignored, fits_monitored=state.fits_monitored + 1,
+                    window=window, model=new_model, frozen=frozen)
     return _step_level(state, obs, z, settings)
 
 
@@ -390,84 +482,13 @@ def _step_level(state: DriftState, obs: FitObservation, z: float,
                          f"CUSUM below {settings.clear_level} for {below} consecutive fits")]
 
 
-def replay(history: Iterable[FitObservation], settings: DriftSettings, *, parameter: str,
-           state: DriftState | None = None) -> tuple[DriftState, list[AlarmEvent]]:
-    """Run a whole history (in operation order) from a fresh state, or from ``state``."""
-    state = state if state is not None else DriftState.new(parameter, settings)
-    if state.parameter != parameter:
-        raise ValueError(f"state is for {state.parameter!r}, not {parameter!r}")
-    events: list[AlarmEvent] = []
-    for obs in history:
-        state, new = update(state, obs, settings)
-        events.extend(new)
-    return state, events
+_MOVED = ("acknowledge", "reset_baseline", "health_status", "replay", "observations_from_fit")
 
 
-def acknowledge(state: DriftState, *, by: str, time: datetime) -> tuple[DriftState, list[AlarmEvent]]:
-    """An operator acknowledges the active alarm. Acknowledging twice is a no-op.
+def __getattr__(name: str):
+    """The lifecycle helpers live in actions.py; ``drift.replay`` etc. keep working."""
+    if name in _MOVED:
+        from service.alarms import actions
 
-    The alarm stays active until the statistic clears it; an escalation needs a new ack.
-    """
-    if not state.active:
-        raise ValueError(f"no active {state.parameter} alarm to acknowledge")
-    if not isinstance(time, datetime) or time.tzinfo is None:
-        raise ValueError("acknowledgement time must be a timezone-aware datetime")
-    if state.acknowledged:
-        return state, []
-    state = replace(state, acknowledged=True, acknowledged_by=str(by), acknowledged_at=time)
-    return state, [AlarmEvent(kind="acknowledged", parameter=state.parameter, level=state.level,
-                              episode=state.episode, operation_id=None, time=time,
-                              evidence={"acknowledged_by": str(by)}, reason=f"acknowledged by {by}")]
-
-
-def reset_baseline(state: DriftState, *, by: str, time: datetime,
-                   reason: str = "maintenance") -> tuple[DriftState, list[AlarmEvent]]:
-    """Admin action after maintenance: the next good fits form a new baseline.
-
-    An active alarm is cleared (the fault it reported was the reason for the maintenance).
-    """
-    if not isinstance(time, datetime) or time.tzinfo is None:
-        raise ValueError("baseline reset time must be a timezone-aware datetime")
-    events = []
-    if state.active:
-        events.append(AlarmEvent(
-            kind="cleared", parameter=state.parameter, level=state.level, episode=state.episode,
-            operation_id=None, time=time,
-            evidence={"baseline": state.baseline.to_dict() if state.baseline else None,
-                      "statistic": state.statistic, "reset_by": str(by)},
-            reason=f"baseline reset by {by}: {reason}"))
-    fresh = DriftState(parameter=state.parameter, episode=state.episode,
-                       last_operation_id=state.last_operation_id, last_time=state.last_time)
-    return fresh, events
-
-
-def observations_from_fit(fit: Any, *, operation_id: int | str, time: datetime,
-                          settings: DriftSettings) -> dict[str, FitObservation]:
-    """The watched parameters of one fit (a ``FitResult`` or its ``to_dict()``) as observations.
-
-    Only feed good fits (status ok) — a failed fit has no value to watch.
-    """
-    get = (lambda key: fit.get(key)) if isinstance(fit, Mapping) else (lambda key: getattr(fit, key, None))
-    params, ci95, stderr = get("parameters") or {}, get("ci95") or {}, get("stderr")
-    stderr = stderr if isinstance(stderr, Mapping) else {}
-    out = {}
-    for name in settings.watched:
-        if name in params:
-            ci = ci95.get(name)
-            out[name] = FitObservation(operation_id=operation_id, time=time, value=params[name],
-                                       ci95=tuple(ci) if ci is not None else None,
-                                       stderr=stderr.get(name))
-    return out
-
-
-def health_status(states: Iterable[DriftState]) -> str:
-    """Overall drift status of a breaker: "alarm" | "warning" | "ok" | "unknown" (no baseline yet)."""
-    states = list(states)
-    levels = {s.level for s in states}
-    if "alarm" in levels:
-        return "alarm"
-    if "warning" in levels:
-        return "warning"
-    if not states or any(s.phase == "baseline" for s in states):
-        return "unknown"
-    return "ok"
+        return getattr(actions, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

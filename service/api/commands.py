@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import shutil
 import threading
 import time
@@ -109,7 +110,9 @@ def cmd_serve(args) -> int:
     _migrate(settings)
     app = create_app(settings, on_key=_print_key(settings))
     print(f"hvcb serving on http://{settings.host}:{settings.port}/ (web page; API docs at /docs)", flush=True)
-    uvicorn.run(app, host=settings.host, port=settings.port, log_level="warning")
+    from service.api.server import uvicorn_config
+
+    uvicorn.Server(uvicorn_config(app, settings)).run()
     return 0
 
 
@@ -148,12 +151,16 @@ def cmd_demo(args) -> int:
     acquisition = [{"driver": "modbus", "breaker": breaker.name,
                     "modbus": {"transport": "tcp", "host": "127.0.0.1", "port": port, "poll_interval_s": 0.2}}]
     try:
-        settings = _settings(args, host=args.host, port=args.port, data_dir=demo_dir, database_url="",
+        # the demo's own SQLite file; HVCB_DEMO_DATABASE_URL (an empty database) for load benches on PostgreSQL
+        settings = _settings(args, host=args.host, port=args.port, data_dir=demo_dir,
+                             database_url=os.environ.get("HVCB_DEMO_DATABASE_URL", ""),
                              broker_url="", executor="local", acquisition=acquisition)
         _migrate(settings)
         keys: list[str] = []  # the demo's fresh admin key, shown with the page's URL
         app = create_app(settings, on_key=keys.append)
-        server = uvicorn.Server(uvicorn.Config(app, host=settings.host, port=settings.port, log_level="warning"))
+        from service.api.server import uvicorn_config
+
+        server = uvicorn.Server(uvicorn_config(app, settings))
         url = f"http://{settings.host}:{settings.port}"
         stop = threading.Event()
 

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from service.acquisition.synthetic import synthesize_capture
+from drivers.synthetic import synthesize_capture
 
 log = logging.getLogger("hvcb.demo")
 

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import asyncio
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Annotated
 
+import anyio.to_thread
 from fastapi import Depends, HTTPException, Request, Security
-from fastapi.concurrency import run_in_threadpool
 from fastapi.security import APIKeyHeader
 from sqlalchemy.exc import DBAPIError, OperationalError
 from sqlalchemy.orm import Session
@@ -21,6 +22,8 @@ api_key_header = APIKeyHeader(name="X-API-Key", auto_error=False,
 
 
 def get_session(request: Request) -> Iterator[Session]:
+    """The request's session; closed (its connection back in the pool) as soon as the handler
+    returns, before the answer is serialised and sent (``scope="function"``)."""
     with request.app.state.Session() as session:
         yield session
 
@@ -33,7 +36,7 @@ def get_monitor(request: Request):
     return request.app.state.monitor
 
 
-SessionDep = Annotated[Session, Depends(get_session)]
+SessionDep = Annotated[Session, Depends(get_session, scope="function")]
 SettingsDep = Annotated[Settings, Depends(get_settings)]
 MonitorDep = Annotated[object, Depends(get_monitor)]
 
@@ -70,35 +73,56 @@ class KeyCache:
 
 def require(role: str, *, also: tuple[str, ...] = ()):
     """Dependency: 401 without a valid key, 403 when the key's role is below ``role`` and not
-    one of ``also`` (the ``agent`` role may upload and nothing else)."""
-    need = crud.ROLE_RANK[role]
+    one of ``also`` (the ``agent`` role may upload and nothing else); 429 from a throttled address."""
 
     async def dependency(request: Request, key: Annotated[str | None, Security(api_key_header)]) -> Principal:
-        # Async so that a cached key costs no threadpool hop; only a miss touches the database.
-        if not key:
-            raise HTTPException(401, "missing API key: send it in the X-API-Key header",
-                                headers={"WWW-Authenticate": "APIKey"})
-        cache: KeyCache = request.app.state.key_cache
-        digest = crud.hash_key(key)
-        principal = cache.get(digest)
-        if principal is None:
-            principal = await run_in_threadpool(_lookup, request, key)
-            cache.put(digest, principal)
-        if crud.ROLE_RANK[principal.role] < need and principal.role not in also:
-            raise HTTPException(403, f"this needs the {role} role; the key has {principal.role}")
-        return principal
+        return await authorise_key(request, key, role, also=also)
 
     return dependency
 
 
-def _lookup(request: Request, key: str) -> Principal:
+async def authorise_key(request: Request, key: str | None, role: str, *, also: tuple[str, ...] = ()) -> Principal:
+    """The key's principal, from the headers alone (the upload guard calls it before the body).
+
+    Async so that a cached key costs no threadpool hop; only a miss touches the database.
+    Wrong keys are throttled per client address (service/api/throttle.py)."""
+    from .guard import client_address
+
+    need = crud.ROLE_RANK[role]
+    if not key:
+        raise HTTPException(401, "missing API key: send it in the X-API-Key header",
+                            headers={"WWW-Authenticate": "APIKey"})
+    cache: KeyCache = request.app.state.key_cache
+    throttle = request.app.state.auth_throttle
+    address = client_address(request.scope)
+    digest = crud.hash_key(key)
+    principal = cache.get(digest)
+    if principal is None:
+        wait = throttle.blocked_for(address)
+        if wait > 0:
+            raise HTTPException(429, f"too many wrong keys from this address: try again in {wait:.0f} s",
+                                headers={"Retry-After": str(max(1, round(wait)))})
+        principal = await anyio.to_thread.run_sync(_lookup, request, key, limiter=request.app.state.priority_limiter)
+        if principal is None:
+            delay = throttle.failed(address, "API keys")
+            if delay:
+                await asyncio.sleep(delay)
+            raise HTTPException(401, "unknown or revoked API key", headers={"WWW-Authenticate": "APIKey"})
+        throttle.succeeded(address)
+        cache.put(digest, principal)
+    if crud.ROLE_RANK[principal.role] < need and principal.role not in also:
+        raise HTTPException(403, f"this needs the {role} role; the key has {principal.role}")
+    return principal
+
+
+def _lookup(request: Request, key: str) -> Principal | None:
     try:
-        with request.app.state.Session() as session:
+        with request.app.state.PrioritySession() as session:
             row = crud.find_api_key(session, key=key)
     except (OperationalError, DBAPIError):
         raise HTTPException(503, "database unavailable; try again shortly") from None
     if row is None:
-        raise HTTPException(401, "unknown or revoked API key", headers={"WWW-Authenticate": "APIKey"})
+        return None
     return Principal(row.id, row.name, row.role)
 
 

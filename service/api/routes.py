@@ -2,13 +2,8 @@
 
 from __future__ import annotations
 
-import io
-import tempfile
 import time
-import tomllib
-import zipfile
 from datetime import datetime, timedelta, timezone
-from pathlib import Path
 from typing import Annotated, Literal
 
 import numpy as np
@@ -18,6 +13,8 @@ from fastapi.responses import Response
 from sqlalchemy.exc import IntegrityError
 
 from drivers.capture import CaptureError
+from service.errors import redact_paths
+from service.jobs.upload import UploadRefused, ingest_upload, parse_upload
 from service.storage import crud
 from service.storage.fit_curve import fit_curve
 from service.storage.models import BreakerRow, utcnow
@@ -69,20 +66,16 @@ def get_breaker(breaker_id: BreakerId, session: SessionDep, _: ReaderDep):
 @router.post("/breakers", response_model=s.BreakerPublic, status_code=201, responses={**AUTH, 409: {"model": s.Message},
              422: {"model": s.Message}}, tags=["breakers"])
 def create_breaker(body: s.BreakerCreate, session: SessionDep, _: AdminDep):
-    from service.breaker_file import load_breaker
+    from service.breaker_file import BreakerFileError, breaker_from_text, parse_breaker_text
 
     try:
-        data = tomllib.loads(body.breaker_file)
-        cam = data.get("cam", {}).get("profile")  # none for an unknown design
-        cam_name = Path(str(cam)).name if cam else ""
-        with tempfile.TemporaryDirectory() as tmp:
-            if cam:
-                (Path(tmp) / cam_name).write_text(body.cam_table)
-            (Path(tmp) / "breaker.toml").write_text(body.breaker_file.replace(str(cam), cam_name) if cam
-                                                    else body.breaker_file)
-            breaker = load_breaker(Path(tmp) / "breaker.toml")
-    except (tomllib.TOMLDecodeError, KeyError, TypeError, ValueError, OSError) as exc:
+        breaker = breaker_from_text(body.breaker_file, body.cam_table, source="(sent)")
+        cam = parse_breaker_text(body.breaker_file, source="(sent)").cam  # none for an unknown design
+        cam_name = cam.profile if cam is not None else ""
+    except BreakerFileError as exc:
         raise HTTPException(422, f"invalid breaker file: {exc}") from None
+    if parse_breaker_text(body.breaker_file, source="(sent)").name is None:
+        raise HTTPException(422, "invalid breaker file: give the breaker a `name`")
     if crud.get_breaker_by_name(session, name=breaker.name) is not None:
         raise HTTPException(409, f"a breaker named {breaker.name!r} exists")
     try:
@@ -140,8 +133,13 @@ def breaker_health(breaker_id: BreakerId, session: SessionDep, settings: Setting
         chars["opening"] = opening.characteristics
     if closing and closing.characteristics:
         chars["closing"] = closing.characteristics
+    from service.jobs.alarm_actions import compensation
+
+    comp = {p: c["status"] for p, c in compensation(session, breaker_id=breaker_id,
+                                                    settings=settings.drift_settings).items()}
     return s.HealthPublic(breaker_id=breaker_id, status=status, opening=opening, closing=closing,
-                          characteristics=chars, active_alarms=[s.AlarmPublic.model_validate(a) for a in alarms])
+                          characteristics=chars, active_alarms=[s.AlarmPublic.model_validate(a) for a in alarms],
+                          temperature_compensation=comp)
 
 
 @router.get("/breakers/{breaker_id}/parameters", response_model=s.TrendPublic, responses={**AUTH, **NOT_FOUND},
@@ -149,9 +147,12 @@ def breaker_health(breaker_id: BreakerId, session: SessionDep, settings: Setting
 def parameter_trend(breaker_id: BreakerId, session: SessionDep, _: ReaderDep,
                     name: Annotated[s.ParameterName, Query(description="parameter, e.g. DO")],
                     since: Annotated[datetime | None, Query(description="ISO-8601; UTC when no zone")] = None,
-                    limit: Annotated[int, Query(ge=1, le=20000)] = 5000):
+                    limit: Annotated[int, Query(ge=1, le=20000)] = 5000,
+                    include_clock_suspect: Annotated[bool, Query(
+                        description="also values of clock-suspect operations (left out by default)")] = False):
     _breaker_or_404(session, breaker_id)
-    rows = crud.parameter_trend(session, breaker_id=breaker_id, name=name, since=_utc(since), limit=limit)
+    rows = crud.parameter_trend(session, breaker_id=breaker_id, name=name, since=_utc(since), limit=limit,
+                                clock_suspect=None if include_clock_suspect else False)
     points = [s.TrendPoint(time=r.occurred_at, value=r.value, operation_id=r.operation_id, identifiable=r.identifiable,
                            ci95=[r.ci_low, r.ci_high] if r.ci_low is not None and r.ci_high is not None else None)
               for r in rows]
@@ -161,9 +162,11 @@ def parameter_trend(breaker_id: BreakerId, session: SessionDep, _: ReaderDep,
 @router.get("/breakers/{breaker_id}/operations", response_model=list[s.OperationPublic],
             responses={**AUTH, **NOT_FOUND}, tags=["operations"])
 def list_operations(breaker_id: BreakerId, session: SessionDep, _: ReaderDep,
-                    limit: Annotated[int, Query(ge=1, le=1000)] = 50):
+                    limit: Annotated[int, Query(ge=1, le=1000)] = 50,
+                    clock_suspect: Annotated[bool | None, Query(
+                        description="true: only clock-suspect operations; false: none of them; omitted: all")] = None):
     _breaker_or_404(session, breaker_id)
-    return crud.list_operations(session, breaker_id=breaker_id, limit=limit)
+    return crud.list_operations(session, breaker_id=breaker_id, limit=limit, clock_suspect=clock_suspect)
 
 
 @router.get("/operations/{operation_id}", response_model=s.OperationPublic, responses={**AUTH, **NOT_FOUND},
@@ -209,19 +212,21 @@ def get_diagnosis(operation_id: OperationId, request: Request, response: Respons
             responses={**AUTH, **NOT_FOUND, 410: {"model": s.Message}}, tags=["operations"])
 def get_curve(operation_id: OperationId, session: SessionDep, _: ReaderDep,
               points: Annotated[int, Query(ge=10, le=5000, description="samples returned")] = 1000):
-    from service.acquisition.capture_file import read_capture
+    from service.acquisition.capture_file import read_stored_capture
 
     op = crud.get_operation(session, operation_id=operation_id)
     if op is None:
         raise HTTPException(404, f"no operation {operation_id}")
+    breaker = crud.breaker_model(crud.get_breaker(session, breaker_id=op.breaker_id))
+    fit = op.fit
+    session.close()  # the file is read and the answer built without holding a connection
     try:
-        cap = read_capture(op.capture_path)
+        cap = read_stored_capture(op.capture_path, breaker)
     except CaptureError as exc:
-        raise HTTPException(410, f"the capture file is no longer readable: {exc}") from None
+        raise HTTPException(410, f"the capture file is no longer readable: {redact_paths(str(exc))}") from None
     idx = np.unique(np.linspace(0, cap.travel.size - 1, min(points, cap.travel.size)).astype(int))
     t, measured = cap.t[idx], cap.travel[idx]
     fitted = residual = window = None
-    fit = op.fit
     curve = fit_curve(fit, cap.t, crud.breaker_model(session.get(BreakerRow, op.breaker_id))) if fit is not None else None
     if curve is not None:
         ft, fv = curve
@@ -237,35 +242,7 @@ def get_curve(operation_id: OperationId, session: SessionDep, _: ReaderDep,
 
 
 # -- uploads -----------------------------------------------------------------------------------
-async def _read_capped(upload: UploadFile, budget: int) -> bytes:
-    data = await upload.read(budget + 1)
-    if len(data) > budget:
-        raise HTTPException(413, f"upload larger than the {budget} byte limit")
-    return data
-
-
-def _pair_from_zip(blob: bytes, cap: int) -> tuple[bytes, bytes, str]:
-    try:
-        zf = zipfile.ZipFile(io.BytesIO(blob))
-        infos = [i for i in zf.infolist() if not i.is_dir()]
-    except (zipfile.BadZipFile, ValueError, OSError) as exc:
-        raise HTTPException(422, f"not a readable zip archive: {exc}") from None
-    if sum(i.file_size for i in infos) > cap:
-        raise HTTPException(413, f"the archive expands beyond the {cap} byte limit")
-    cfgs = [i for i in infos if i.filename.lower().endswith(".cfg")]
-    if len(cfgs) != 1:
-        raise HTTPException(422, f"the zip must hold exactly one .cfg file, found {len(cfgs)}")
-    stem = cfgs[0].filename[:-4]
-    dats = [i for i in infos if i.filename[:-4] == stem and i.filename.lower().endswith(".dat")]
-    if len(dats) != 1:
-        raise HTTPException(422, f"the zip holds no .dat file matching {cfgs[0].filename}")
-    try:
-        return zf.read(cfgs[0]), zf.read(dats[0]), cfgs[0].filename
-    except (zipfile.BadZipFile, RuntimeError, OSError, ValueError) as exc:
-        raise HTTPException(422, f"cannot extract the archive: {exc}") from None
-
-
-def _duplicate(session, breaker_id: int, key: str, response: Response) -> s.UploadAccepted | None:
+def _duplicate(session, breaker_id: int, key: str) -> s.UploadAccepted | None:
     """The operation already stored under this idempotency key, or None."""
     op = crud.get_operation_by_key(session, capture_key=key)
     if op is None:
@@ -273,88 +250,13 @@ def _duplicate(session, breaker_id: int, key: str, response: Response) -> s.Uplo
     if op.breaker_id != breaker_id:
         raise HTTPException(409, f"this capture (Idempotency-Key {key[:12]}...) is stored under breaker "
                                  f"{op.breaker_id}, not {breaker_id}")
-    response.status_code = 200
     return s.UploadAccepted(operation_id=op.id, capture_key=key, operation=op.kind, status="duplicate")
 
 
-def content_hash(cfg: bytes, dat: bytes) -> str:
-    """The capture's content hash: SHA-256 over the hex SHA-256 of the .cfg then the .dat
-    (``service.storage.spool.capture_digest`` of the two files)."""
-    import hashlib
-
-    return hashlib.sha256(hashlib.sha256(cfg).hexdigest().encode() + hashlib.sha256(dat).hexdigest().encode()
-                          ).hexdigest()
-
-
-def capture_from_upload(blobs: dict[str, bytes], row, operation: str | None, cap_bytes: int,
-                        idempotency_key: str | None = None):
-    """(Capture, "open"|"close") from uploaded files {lower-case name: bytes}: a .cfg and its .dat,
-    or one .zip holding them. Raises HTTPException (413/422) with the reason in words; the web page
-    uses it too."""
-    from service.acquisition.capture_file import load_comtrade_bytes
-
-    names = list(blobs)
-    if len(names) == 1 and names[0].endswith((".csv", ".txt")):
-        return _text_capture_upload(blobs[names[0]], names[0], row, operation, idempotency_key)
-    if len(names) == 1 and names[0].endswith(".zip"):
-        cfg, dat, name = _pair_from_zip(blobs[names[0]], cap_bytes)
-    elif len(names) == 1 and names[0].endswith(".cff"):
-        cfg, dat, name = blobs[names[0]], None, names[0]
-    else:
-        cfg_names = [n for n in names if n.endswith(".cfg")]
-        dat_names = [n for n in names if n.endswith(".dat")]
-        if len(cfg_names) != 1 or len(dat_names) != 1 or len(names) != 2:
-            raise HTTPException(422, "send a COMTRADE .cfg and its .dat (two files), one .cff, "
-                                     "one .zip holding a .cfg and its .dat, or one analyser export (.csv)")
-        cfg, dat, name = blobs[cfg_names[0]], blobs[dat_names[0]], cfg_names[0]
-    if idempotency_key is not None and content_hash(cfg, dat or b"") != idempotency_key:
-        raise HTTPException(422, "the Idempotency-Key is not the content hash of the uploaded .cfg and .dat "
-                                 "(damaged in transit, or the wrong key)")
-    breaker = crud.breaker_model(row)
-    try:
-        # the same reader as hvcb fit/detect/inspect: the same message for the same file
-        capture = load_comtrade_bytes(cfg, dat, source=f"upload:{name}",
-                                      travel_channel=breaker.channels.get("travel", "travel"),
-                                      vibration_channel=breaker.channels.get("vibration", "vibration"))
-        if capture.travel.size < 16:
-            raise CaptureError(f"{name}: the record holds fewer than 16 samples")
-        from service.jobs.ingest import infer_operation
-
-        kind = operation or infer_operation(capture)
-    except CaptureError as exc:
-        named = name.rsplit(".", 1)[0] + "." in str(exc)  # the reader names the .cfg or the .dat
-        raise HTTPException(422, str(exc) if named else f"{name}: {exc}") from None
-    except HTTPException:
-        raise
-    except Exception:  # a reader bug must not become a 500 for the client; the reader checks its input
-        raise HTTPException(422, f"{name}: the capture could not be read as COMTRADE") from None
-    return capture, kind
-
-
-def _text_capture_upload(data: bytes, name: str, row, operation: str | None, idempotency_key: str | None):
-    """One text capture (a breaker-analyser export, or a CSV t_s,travel_rad[,vibration_g]) through
-    the same reader as the CLI; an analyser record's operation is cut out here."""
-    from service.acquisition.capture_file import load_capture_bytes
-    from service.estimation.record import upload_operation
-
-    if idempotency_key is not None and content_hash(data, b"") != idempotency_key:
-        raise HTTPException(422, "the Idempotency-Key is not the content hash of the uploaded file "
-                                 "(damaged in transit, or the wrong key)")
-    breaker = crud.breaker_model(row)
-    try:
-        capture = load_capture_bytes(data, name=name, travel_channel=breaker.channels.get("travel", "travel"),
-                                     vibration_channel=breaker.channels.get("vibration", "vibration"))
-        capture, kind = upload_operation(capture, breaker, operation)
-        if capture.travel.size < 16:
-            raise CaptureError(f"{name}: the record holds fewer than 16 samples")
-        from service.jobs.ingest import infer_operation
-
-        kind = kind or infer_operation(capture)
-    except ValueError as exc:  # CaptureError, FitError: the reader's words
-        raise HTTPException(422, str(exc) if name in str(exc) else f"{name}: {exc}") from None
-    except Exception:  # a reader bug must not become a 500 for the client
-        raise HTTPException(422, f"{name}: the capture could not be read") from None
-    return capture, kind
+def _upload_context(session, breaker_id: int, idempotency_key: str | None):
+    row = _breaker_or_404(session, breaker_id)
+    dup = _duplicate(session, breaker_id, idempotency_key, ) if idempotency_key is not None else None
+    return row, dup
 
 
 @router.post("/breakers/{breaker_id}/captures", response_model=s.UploadAccepted, status_code=202,
@@ -362,37 +264,42 @@ def _text_capture_upload(data: bytes, name: str, row, operation: str | None, ide
                                                    "description": "stored before under this Idempotency-Key"},
                         409: {"model": s.Message}, 413: {"model": s.Message}, 422: {"model": s.Message}},
              tags=["operations"])
-async def upload_capture(breaker_id: BreakerId, request: Request, response: Response, session: SessionDep,
+async def upload_capture(breaker_id: BreakerId, request: Request, response: Response,
                          settings: SettingsDep, monitor: MonitorDep, who: UploaderDep,
                          files: Annotated[list[UploadFile], File(description="a .cfg and its .dat, one .cff, or one .zip")],
                          operation: Annotated[Literal["open", "close"] | None,
                                               Form(description="inferred from the travel when omitted")] = None,
+                         temperature_c: Annotated[float | None, Form(
+                             ge=-60, le=100, allow_inf_nan=False,
+                             description="ambient or mechanism temperature of the operation [C] "
+                                         "(docs/alarms.md); else the capture's temperature channel, "
+                                         "else the latest SCADA value")] = None,
                          idempotency_key: Annotated[str | None, Header(
                              alias="Idempotency-Key", pattern=r"^[0-9a-f]{64}$",
                              description="the capture's content hash (SHA-256 of the hex SHA-256 of the .cfg "
                                          "then the .dat): a retry answers with the stored operation")] = None):
     """Upload one capture (operator, admin or agent key). With ``Idempotency-Key`` a capture is
-    stored once however often it is sent: a repeat answers 200 with the existing operation."""
-    cap_bytes = settings.max_upload_bytes
-    declared = request.headers.get("content-length")
-    if declared and declared.isdigit() and int(declared) > cap_bytes + 64 * 1024:
-        raise HTTPException(413, f"upload larger than the {cap_bytes} byte limit")
-    row = _breaker_or_404(session, breaker_id)
-    if idempotency_key is not None:
-        dup = _duplicate(session, breaker_id, idempotency_key, response)
-        if dup is not None:
-            return dup
-    blobs, budget = {}, cap_bytes
-    for f in files:
-        data = await _read_capped(f, budget)
-        budget -= len(data)
-        blobs[(f.filename or "").lower()] = data
-    capture, kind = capture_from_upload(blobs, row, operation, cap_bytes, idempotency_key=idempotency_key)
-    session.close()
+    stored once however often it is sent: a repeat answers 200 with the existing operation.
+    The key is checked from the headers before the body is read, and the body is cut at
+    ``max_upload_bytes`` (docs/security.md). The files are stored byte for byte as sent."""
+    def context():
+        with request.app.state.Session() as session:
+            return _upload_context(session, breaker_id, idempotency_key)
+
+    row, dup = await run_in_threadpool(context)
+    if dup is not None:
+        response.status_code = 200
+        return dup
+    try:
+        upload = await parse_upload(request.app.state, files, row, operation, idempotency_key)
+    except UploadRefused as exc:
+        raise HTTPException(exc.status_code, exc.detail) from None
     source = "agent" if who.role == "agent" else "upload"
-    result = await run_in_threadpool(monitor.ingest, capture, breaker_id=breaker_id, operation=kind, source=source,
+    if temperature_c is not None:  # given with the upload: it beats the capture's channel
+        upload.capture.meta["temperature_c"], upload.capture.meta["temperature_source"] = temperature_c, source
+    result = await run_in_threadpool(ingest_upload, monitor, settings, upload, breaker_id=breaker_id, source=source,
                                      capture_key=idempotency_key)
-    return s.UploadAccepted(operation_id=result.operation_id, capture_key=result.capture_key, operation=kind,
+    return s.UploadAccepted(operation_id=result.operation_id, capture_key=result.capture_key, operation=upload.kind,
                             status="spooled" if result.spooled else "queued")
 
 
@@ -418,6 +325,9 @@ def acknowledge_alarm(alarm_id: AlarmId, session: SessionDep, settings: Settings
     if alarm.state == "raised":
         crud.acknowledge_alarm(session, alarm=alarm, by=who.name, comment=body.comment if body else None)
         acknowledge_drift(session, alarm=alarm, by=who.name, settings=settings.drift_settings)
+        from service.jobs.alarm_actions import audit_acknowledge
+
+        audit_acknowledge(session, alarm=alarm, by=who.name, comment=body.comment if body else None)
         session.commit()
     return alarm
 
@@ -478,8 +388,8 @@ def _scada_points(session, settings) -> list[s.ScadaPoint]:
     return points
 
 
-# Refits (hvcb refit through the API, admins only): their routes live with the refit package.
-from service.refit.api import router as _refit_router  # noqa: E402
+# Refits (hvcb refit through the API, admins only): their routes are in refits.py.
+from .refits import router as _refit_router  # noqa: E402
 
 router.include_router(_refit_router)
 

@@ -18,6 +18,16 @@ def iso_z(t: datetime | None) -> str | None:
 
 UtcTime = Annotated[datetime, PlainSerializer(iso_z, return_type=str, when_used="json")]
 
+
+def _no_paths(text: str | None) -> str | None:
+    from service.errors import redact_paths
+
+    return redact_paths(text)
+
+
+# A failure reason as answered: absolute server paths cut to file names (D11, docs/security.md)
+Reason = Annotated[str | None, PlainSerializer(_no_paths, return_type=str | None)]
+
 UNITS = {"AO": "s^-2", "BO": "s^-2", "DO": "s^-1", "EO": "s^-2", "AC": "s^-2", "BC": "1", "CC": "s^-2",
          "DC": "s^-2"}
 OPENING = ("AO", "BO", "DO", "EO")
@@ -59,7 +69,7 @@ class BreakerDetail(BreakerPublic):
 class FitPublic(ORM):
     status: Literal["queued", "running", "done", "failed"]
     attempts: int
-    failure_reason: str | None = None
+    failure_reason: Reason = None
     parameters: dict[str, float] | None = None
     ci95: dict[str, list[float]] | None = None
     stderr: dict[str, float] | None = None
@@ -91,6 +101,10 @@ class OperationPublic(ORM):
     flags: list[str]
     sample_rate: float
     n_samples: int
+    clock_suspect: bool = Field(False, description="dated more than clock_tolerance_s after it arrived: "
+                                "not latest, not on SCADA, not in the drift baseline")
+    temperature_c: float | None = Field(None, description="temperature of the operation [C] (docs/alarms.md)")
+    temperature_source: str | None = Field(None, description="channel | upload | agent | scada")
     fit: FitPublic | None = None
 
 
@@ -160,6 +174,9 @@ class HealthPublic(BaseModel):
     closing: LatestFit | None = None
     characteristics: dict = Field(default_factory=dict, description="travel characteristics by operation")
     active_alarms: list[AlarmPublic]
+    temperature_compensation: dict[str, str] = Field(
+        default_factory=dict, description='per watched parameter: "temperature-compensated" or '
+                                          '"not temperature-compensated" (docs/alarms.md)')
 
 
 class TrendPoint(BaseModel):
@@ -217,7 +234,7 @@ class DiagnosisPublic(BaseModel):
     status: str = Field(description="queued | running | done | failed")
     requested_at: datetime
     finished_at: datetime | None = None
-    failure_reason: str | None = None
+    failure_reason: Reason = None
     result: dict | None = Field(None, description="the `hvcb diagnose --json` object: gap, candidates, verdict, ...")
 
 

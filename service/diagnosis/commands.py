@@ -24,6 +24,10 @@ def run_diagnose(args) -> int:
     from ..breaker_file import load_breaker
     from .diagnose import diagnose
 
+    if args.plot:
+        from service.plots import require_matplotlib
+
+        require_matplotlib("--plot")  # before the work, not after it
     breaker = load_breaker(args.breaker)
     caps = [read_capture(c, travel_channel=breaker.channels["travel"],
                          vibration_channel=breaker.channels["vibration"]) for c in args.captures]

@@ -16,6 +16,7 @@ from __future__ import annotations
 import time
 
 import numpy as np
+from scipy.ndimage import uniform_filter1d
 from scipy.stats import chi2
 
 from ..mechanics.breaker import Breaker
@@ -262,8 +263,9 @@ def _status(verdict, chosen, ambiguous) -> str:
 def _check_breaker(cap, breaker, operation):
     """A capture whose stroke is not the breaker's comes from another breaker (or channel)."""
     y = operation_coordinate(np.asarray(cap.travel, float), operation, breaker.stroke)
-    n = max(int(0.002 * cap.sample_rate), 4)
-    head, peak = float(np.median(y[:n])), float(np.max(np.convolve(y, np.ones(n) / n, "valid")))
+    n = min(max(int(0.002 * cap.sample_rate), 4), y.size)
+    # the largest average over n samples, over full windows only
+    head, peak = float(np.median(y[:n])), float(np.max(uniform_filter1d(y, n)[n // 2: y.size - n + n // 2 + 1]))
     span = peak - head
     if span > 0.1 * breaker.stroke and not 0.75 * breaker.stroke <= span <= 1.35 * breaker.stroke:
         raise DiagnosisError(

@@ -37,10 +37,9 @@ def format_report(result: dict) -> str:
 
 def plot_residuals(result: dict, before, after, t, path: str | Path) -> Path:
     """PNG of the residual [mrad] vs time, before and after the chosen effect, phases shaded."""
-    import matplotlib
+    from service.plots import pyplot
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot("--plot")
 
     fig, ax = plt.subplots(figsize=(9, 4))
     for i, ph in enumerate(result["gap"]["phases"]):

@@ -9,6 +9,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.ndimage import uniform_filter1d
+from scipy.stats import median_abs_deviation
 
 from drivers.capture import Capture
 from ..mechanics.breaker import Breaker
@@ -168,7 +170,7 @@ def prepare_window(capture: Capture, breaker: Breaker, operation: str) -> FitWin
         noise_source = "pre-trigger"
     else:
         d = np.diff(y[: max(i_move, MIN_IDLE)]) if i_move > 8 else np.diff(y)
-        noise = float(np.median(np.abs(d - np.median(d))) * 1.4826 / np.sqrt(2))
+        noise = float(median_abs_deviation(d, scale="normal") / np.sqrt(2))
         noise_source = "differences"
     noise = max(noise, 1e-7)
     i_end, t_end = _peak(y, smooth, i_move, fs, operation, noise, stroke, src)
@@ -187,11 +189,7 @@ def operation_word(operation: str) -> str:
 
 
 def _moving_average(y, n):
-    if n <= 1:
-        return y
-    kernel = np.ones(n) / n
-    padded = np.concatenate([np.full(n // 2, y[0]), y, np.full(n - 1 - n // 2, y[-1])])
-    return np.convolve(padded, kernel, mode="valid")
+    return y if n <= 1 else uniform_filter1d(np.asarray(y, dtype=float), n, mode="nearest")
 
 
 def _find_shock(capture: Capture, i_move: int, fs: float, operation: str):
@@ -204,7 +202,7 @@ def _find_shock(capture: Capture, i_move: int, fs: float, operation: str):
     vib = np.asarray(vib, dtype=float)
     ref = vib[: max(min(i_move, int(0.005 * fs)), 32)]
     centre = float(np.median(ref))
-    sd = 1.4826 * float(np.median(np.abs(ref - centre)))
+    sd = float(median_abs_deviation(ref, scale="normal"))
     threshold = max(float(capture.meta.get("shock_threshold_g", 50.0)), 10.0 * sd)
     lead = 0.005 if operation == "open" else 0.040
     lo = max(i_move - int(lead * fs), 0)
@@ -286,7 +284,7 @@ class EndSpeed:
     peak_speed : float
         Largest 1 ms average speed of the motion [rad/s].
     t_vertex : float
-        Time of the quadratic's maximum relative to the last sample, within [-END_FIT_S, 0] [s].
+        Time of the quadratic's maximum relative to the last sample, within ``[-END_FIT_S, 0]`` [s].
     """
 
     speed: float

@@ -285,7 +285,7 @@ def operating_time_level(history: Iterable[tuple], settings) -> str:
 
 
 def markdown_table(ld: LogicalDevice) -> str:
-    """The point map of ``ld`` as a Markdown table, one row per data object (README)."""
+    """The point map of ``ld`` as a Markdown table, one row per data object (docs/iec61850.md)."""
     rows = ["| LD/LN.DO | CDC | data attributes (FC, type) | meaning | namespace |",
             "|---|---|---|---|---|"]
     for o in ld.objects:

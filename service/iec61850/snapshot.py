@@ -54,7 +54,7 @@ class OperatingTimeCache:
         q = (select(FitRow.operation_id, OperationRow.occurred_at, FitRow.characteristics)
              .join(OperationRow, OperationRow.id == FitRow.operation_id)
              .where(FitRow.breaker_id == breaker.id, FitRow.kind == kind, FitRow.status == "done",
-                    FitRow.identifiable.is_not(False)))
+                    FitRow.identifiable.is_not(False), OperationRow.clock_suspect.is_(False)))
         if breaker.baseline_reset_at is not None:
             q = q.where(OperationRow.occurred_at >= breaker.baseline_reset_at)
         sub = q.subquery()
@@ -82,7 +82,7 @@ def breaker_views(session, *, now: datetime, daq_timeout_s: float, drift_setting
     for b in crud.list_breakers(session):
         n_ops = session.scalar(select(func.count(OperationRow.id)).where(OperationRow.breaker_id == b.id))
         last = session.execute(select(OperationRow.kind, OperationRow.occurred_at)
-                               .where(OperationRow.breaker_id == b.id)
+                               .where(OperationRow.breaker_id == b.id, OperationRow.clock_suspect.is_(False))
                                .order_by(OperationRow.occurred_at.desc(), OperationRow.id.desc()).limit(1)).first()
         alarms = {a.parameter: a.level for a in crud.list_alarms(session, state="active", breaker_id=b.id)}
         d = daq.get(b.id)

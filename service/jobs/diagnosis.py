@@ -23,7 +23,7 @@ def run_diagnosis_job(operation_id: int, database_url: str) -> str:
     Returns the final status (``done``, ``failed`` or ``skipped`` when another run finished it).
     """
     from drivers.capture import CaptureError
-    from service.acquisition.capture_file import read_capture
+    from service.acquisition.capture_file import read_stored_capture
     from service.diagnosis import diagnose
 
     Session = session_factory(cached_engine(database_url))
@@ -40,8 +40,7 @@ def run_diagnosis_job(operation_id: int, database_url: str) -> str:
         files = capture_files(path)
         if any(not p.exists() for p in files) or capture_digest(files) != sha:
             raise CaptureError("capture file missing or changed since it was recorded")
-        capture = read_capture(path, travel_channel=breaker.channels.get("travel", "travel"),
-                               vibration_channel=breaker.channels.get("vibration", "vibration"))
+        capture = read_stored_capture(path, breaker)
         result = json.loads(json.dumps(diagnose([capture], breaker, kind), default=_plain))
         status, reason = "done", None
     except Exception as exc:  # stored with its reason; a later request may retry by deleting it

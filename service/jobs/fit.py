@@ -149,7 +149,7 @@ def _accepts_prior(fit_function) -> bool:
 def _fit(capture_path: str, expected_sha: str, breaker, kind: str, dc, options: JobOptions,
          prior=None):
     from drivers.capture import CaptureError
-    from service.acquisition.capture_file import read_capture
+    from service.acquisition.capture_file import read_stored_capture
 
     files = capture_files(capture_path)
     missing = [str(p) for p in files if not p.exists()]
@@ -158,8 +158,7 @@ def _fit(capture_path: str, expected_sha: str, breaker, kind: str, dc, options: 
     if capture_digest(files) != expected_sha:
         raise CaptureError("capture file checksum does not match the one recorded at capture time "
                            "(file changed or corrupted on disk)")
-    capture = read_capture(capture_path, travel_channel=breaker.channels.get("travel", "travel"),
-                           vibration_channel=breaker.channels.get("vibration", "vibration"))
+    capture = read_stored_capture(capture_path, breaker)
     fit_capture = _resolve(options.fit_function)
     extra = {"prior": prior} if prior is not None and _accepts_prior(fit_capture) else {}
     result = fit_capture(capture, breaker, kind, dc=dc, seed=options.fit_seed, **extra)
@@ -213,18 +212,26 @@ def update_drift(session, *, breaker_id: int, options: JobOptions | None = None,
     from service.alarms.settings import DriftSettings
 
     settings = settings or DriftSettings.from_mapping((options.alarms if options else None) or {})
+    from service.storage.crud_alarms import operation_temperatures
+
     session.execute(select(BreakerRow.id).where(BreakerRow.id == breaker_id).with_for_update())
     breaker = session.get(BreakerRow, breaker_id)
+    if breaker.out_of_service_since is not None:
+        return []  # maintenance: nothing is watched; the baseline is reset at its end
     all_events = []
     for parameter in settings.watched:
         row, state = _drift_state(session, breaker_id, parameter, settings)
         since = state.last_time or breaker.baseline_reset_at
         history = crud.good_parameter_history(session, breaker_id=breaker_id, name=parameter, since=since)
+        temps = operation_temperatures(session, {pv.operation_id for pv in history})
         for pv in history:
             if state.last_time is not None and (pv.occurred_at, pv.operation_id) <= (state.last_time, state.last_operation_id or 0):
                 continue
+            if breaker.baseline_reset_at is not None and pv.occurred_at < breaker.baseline_reset_at:
+                continue  # an operation from before the reset (e.g. during maintenance)
             obs = drift.FitObservation(operation_id=pv.operation_id, time=pv.occurred_at, value=pv.value,
-                                       ci95=(pv.ci_low, pv.ci_high) if pv.ci_low is not None and pv.ci_high is not None else None)
+                                       ci95=(pv.ci_low, pv.ci_high) if pv.ci_low is not None and pv.ci_high is not None else None,
+                                       temperature=temps.get(pv.operation_id))
             state, events = drift.update(state, obs, settings)
             for ev in events:
                 apply_alarm_event(session, breaker_id=breaker_id, event=ev)
@@ -239,7 +246,10 @@ def apply_alarm_event(session, *, breaker_id: int, event) -> AlarmRow | None:
     active = crud.active_alarm(session, breaker_id=breaker_id, parameter=event.parameter)
     now = utcnow()
     if event.kind == "raised":
+        from service.storage.crud_alarms import first_out_now
+
         alarm = AlarmRow(breaker_id=breaker_id, parameter=event.parameter, level=event.level, state="raised",
+                         first_out=first_out_now(session, breaker_id=breaker_id),
                          episode=event.episode, message=_message(event), evidence=_jsonable(event.evidence),
                          operation_id=event.operation_id if isinstance(event.operation_id, int) else None,
                          raised_at=now, updated_at=now)

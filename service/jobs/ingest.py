@@ -41,6 +41,17 @@ def infer_operation(capture: Capture) -> str:
     return "open" if end > start else "close"
 
 
+CLOCK_SUSPECT = "clock suspect"
+
+
+def clock_suspect(occurred: datetime, arrived: datetime, tolerance_s: float) -> bool:
+    """True when a capture is dated more than ``tolerance_s`` after it arrived. A record cannot
+    come from the future: beyond any plausible clock drift or time-zone slip (a day by default,
+    more than the largest UTC offset of 14 h), its clock is wrong. Old dates are not suspect:
+    recordings are uploaded long after the fact."""
+    return (occurred - arrived).total_seconds() > tolerance_s
+
+
 class Monitor:
     """Owns the spool, the executor and the recovery thread of one service process."""
 
@@ -55,6 +66,7 @@ class Monitor:
         self._thread: threading.Thread | None = None
         self._drain_lock = threading.Lock()
         self.db_ok = True
+        self.clock_suspect: dict[int, int] = {}  # breaker id -> clock-suspect captures since start
 
     # -- lifecycle -----------------------------------------------------------------------------
     def start(self) -> None:
@@ -105,6 +117,15 @@ class Monitor:
         occurred = capture.start_time or now
         if occurred.tzinfo is None:
             occurred = occurred.replace(tzinfo=timezone.utc)
+        suspect = clock_suspect(occurred, now, getattr(self.settings, "clock_tolerance_s", 86400.0))
+        flags = list(capture.flags)
+        if suspect:
+            flags.append(CLOCK_SUSPECT)
+            self.clock_suspect[breaker_id] = self.clock_suspect.get(breaker_id, 0) + 1
+            log.warning("breaker %s: a %s capture is dated %s, %.1f h after it arrived: stored, flagged "
+                        "clock suspect and kept out of latest values, SCADA and the drift baseline%s",
+                        breaker_id, source, occurred.isoformat(), (occurred - now).total_seconds() / 3600,
+                        " (the DAQ's clock jumped: set it right)" if source == "daq" else "")
         directory = self.settings.capture_dir / now.strftime("%Y") / now.strftime("%m%d")
         if capture_path is not None:
             path = Path(capture_path)
@@ -113,8 +134,10 @@ class Monitor:
             path, sha = write_capture_file(capture, directory, key)
         entry = {"capture_key": key, "breaker_id": breaker_id, "kind": kind,
                  "occurred_at": occurred.isoformat(), "source": source, "capture_path": str(path.resolve()),
-                 "capture_sha256": sha, "flags": list(capture.flags), "sample_rate": capture.sample_rate,
-                 "n_samples": int(capture.travel.size), "spooled_at": now.isoformat()}
+                 "capture_sha256": sha, "flags": flags, "clock_suspect": suspect, "sample_rate": capture.sample_rate,
+                 "n_samples": int(capture.travel.size), "spooled_at": now.isoformat(),
+                 "temperature_c": capture.meta.get("temperature_c"),
+                 "temperature_source": capture.meta.get("temperature_source")}
         self.spool.put(entry)
         if self.metrics is not None:
             self.metrics.captures.labels(source=source).inc()
@@ -131,7 +154,9 @@ class Monitor:
                     session, capture_key=entry["capture_key"], breaker_id=entry["breaker_id"], kind=entry["kind"],
                     occurred_at=datetime.fromisoformat(entry["occurred_at"]), source=entry["source"],
                     capture_path=entry["capture_path"], capture_sha256=entry["capture_sha256"],
-                    flags=entry["flags"], sample_rate=entry["sample_rate"], n_samples=entry["n_samples"])
+                    flags=entry["flags"], sample_rate=entry["sample_rate"], n_samples=entry["n_samples"],
+                    clock_suspect=entry.get("clock_suspect", False),
+                    temperature_c=entry.get("temperature_c"), temperature_source=entry.get("temperature_source"))
                 op_id = op.id
         except IntegrityError:  # stored concurrently by the spool thread: look it up
             with self.Session() as session:

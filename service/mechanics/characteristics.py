@@ -7,6 +7,7 @@ given as fractions of the stroke from the operation's starting position.
 from __future__ import annotations
 
 import numpy as np
+from scipy.ndimage import uniform_filter1d
 
 from .coordinates import operation_coordinate
 
@@ -48,7 +49,7 @@ def travel_characteristics(t, travel, operation: str, *, stroke: float, t_start:
     y = operation_coordinate(np.asarray(travel, dtype=float), operation, stroke)
     fs = 1.0 / (t[1] - t[0])
     n = max(int(smooth_s * fs), 1)
-    ys = np.convolve(np.pad(y, (n // 2, n - 1 - n // 2), mode="edge"), np.ones(n) / n, mode="valid")
+    ys = uniform_filter1d(y, n, mode="nearest")
     start = ys[t <= t_start].mean() if np.any(t <= t_start) else ys[0]
     if contact_fraction is None:
         contact_fraction = 0.2 if operation == "open" else 0.8

@@ -40,7 +40,7 @@ def _check_database(engine, url: str) -> None:
     """A missing or unmigrated database is a sentence, not a traceback."""
     from sqlalchemy.exc import SQLAlchemyError
 
-    from service.api.app import NotMigrated, check_schema
+    from service.storage.schema import NotMigrated, check_schema
 
     where = url.split("@")[-1]
     try:

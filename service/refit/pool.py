@@ -7,7 +7,7 @@ from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
 from service.jobs.fit import JobOptions
 
-from .batch import refit_batch
+from service.jobs.refit import refit_batch
 
 BATCH_TASK = "hvcb.refit_batch"
 

@@ -15,7 +15,6 @@ database to this code's head revision.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import shutil
@@ -25,7 +24,9 @@ import time
 from datetime import datetime, timezone
 from pathlib import Path
 
+from service.durable import write_durably
 from service.errors import UserError
+from service.storage.spool import sha256_file
 
 MANIFEST = "manifest.json"
 FORMAT = 1
@@ -57,14 +58,6 @@ def _pg_tool(name: str) -> str:
                         f"version (Debian: apt install postgresql-client), or follow the manual "
                         f"procedure in docs/operations.md")
     return path
-
-
-def _sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for chunk in iter(lambda: fh.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
 
 
 def _counts(url: str) -> dict:
@@ -132,7 +125,7 @@ def backup(settings, dest: str | Path, *, progress=None) -> dict:
         finally:
             dst.close()
             src.close()
-        database = {"kind": "sqlite", "file": out.name, "sha256": _sha256(out), "bytes": out.stat().st_size}
+        database = {"kind": "sqlite", "file": out.name, "sha256": sha256_file(out), "bytes": out.stat().st_size}
         counts = _counts(f"sqlite:///{out.resolve()}")
     else:
         out = dest / "database.pgdump"
@@ -141,7 +134,7 @@ def backup(settings, dest: str | Path, *, progress=None) -> dict:
                               "--file", str(out), "--dbname", _libpq_url(url)], capture_output=True, text=True)
         if run.returncode != 0:
             raise UserError(f"pg_dump failed: {run.stderr.strip()[:500]}")
-        database = {"kind": "postgresql", "file": out.name, "sha256": _sha256(out), "bytes": out.stat().st_size,
+        database = {"kind": "postgresql", "file": out.name, "sha256": sha256_file(out), "bytes": out.stat().st_size,
                     "tool": subprocess.run([_pg_tool("pg_dump"), "--version"], capture_output=True,
                                            text=True).stdout.strip()}
         counts = None  # read from the live database right after the dump: close, not exact
@@ -160,9 +153,8 @@ def backup(settings, dest: str | Path, *, progress=None) -> dict:
                 "capture_dir": str(Path(settings.capture_dir).resolve()),
                 "captures": {"files": files, "bytes": size, "missing": missing},
                 "spool_entries": spool_files, "secrets": [n for n in SECRETS if (dest / n).exists()]}
-    tmp = dest / (MANIFEST + ".tmp")
-    tmp.write_text(json.dumps(manifest, indent=1))
-    os.replace(tmp, dest / MANIFEST)  # a backup without its manifest is an unfinished one
+    # last, and durably: a backup without its manifest is an unfinished one
+    write_durably(dest / MANIFEST, json.dumps(manifest, indent=1))
     return manifest
 
 
@@ -198,7 +190,7 @@ def read_manifest(src: Path) -> dict:
     if manifest.get("format") != FORMAT:
         raise UserError(f"{path}: backup format {manifest.get('format')!r} is not supported (expected {FORMAT})")
     db = Path(src) / manifest["database"]["file"]
-    if not db.is_file() or _sha256(db) != manifest["database"]["sha256"]:
+    if not db.is_file() or sha256_file(db) != manifest["database"]["sha256"]:
         raise UserError(f"{db}: the database copy is missing or does not match the manifest's checksum")
     return manifest
 

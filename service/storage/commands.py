@@ -39,7 +39,7 @@ def cmd_prune(args) -> int:
                         "in the settings (docs/operations.md); nothing pruned")
     engine = make_engine(settings.sqlalchemy_url)
     try:
-        from service.api.app import check_schema
+        from service.storage.schema import check_schema
 
         check_schema(engine)
         report = prune(session_factory(engine), policy=policy, capture_dir=settings.capture_dir,

@@ -4,9 +4,7 @@ from __future__ import annotations
 
 import hashlib
 import secrets
-import tempfile
 import threading
-import tomllib
 from datetime import datetime
 from pathlib import Path
 
@@ -23,16 +21,16 @@ ROLE_RANK = {"agent": -1, "reader": 0, "operator": 1, "admin": 2}
 # -- breakers ----------------------------------------------------------------------------------
 def register_breaker_file(session: Session, *, path: Path, tag: str | None = None) -> BreakerRow:
     """Create or refresh the breaker described by the breaker file at ``path`` (and its cam table)."""
-    from service.breaker_file import load_breaker
+    from service.breaker_file import load_breaker, parse_breaker_text
 
     path = Path(path)
     breaker = load_breaker(path)  # validates before anything is stored
     text = path.read_text()
-    cam_name = tomllib.loads(text).get("cam", {}).get("profile")  # none for an unknown design
+    cam = parse_breaker_text(text, source=str(path)).cam  # none for an unknown design
+    cam_name = cam.profile if cam is not None else ""
     cam_text = (path.parent / cam_name).read_text() if cam_name else ""
-    cam_name = cam_name or ""
     return upsert_breaker(session, name=breaker.name, tag=tag, breaker_file=text,
-                          cam_file_name=Path(cam_name).name, cam_table=cam_text)
+                          cam_file_name=cam_name, cam_table=cam_text)
 
 
 def upsert_breaker(session: Session, *, name: str, breaker_file: str, cam_file_name: str,
@@ -72,21 +70,14 @@ _breaker_lock = threading.Lock()
 
 def breaker_model(row: BreakerRow):
     """The ``Breaker`` stored in ``row`` (materialised once per content hash and process)."""
-    from service.breaker_file import load_breaker
+    from service.breaker_file import breaker_from_text
 
     with _breaker_lock:
         hit = _breaker_cache.get(row.content_sha256)
         if hit is not None:
             return hit
-        with tempfile.TemporaryDirectory(prefix="hvcb-breaker-") as tmp:
-            text = row.breaker_file
-            data = tomllib.loads(text)
-            cam = data.get("cam", {}).get("profile")  # none for an unknown design
-            if cam:
-                (Path(tmp) / Path(cam).name).write_text(row.cam_table)
-                text = text.replace(cam, Path(cam).name)
-            (Path(tmp) / "breaker.toml").write_text(text)
-            breaker = load_breaker(Path(tmp) / "breaker.toml")
+        breaker = breaker_from_text(row.breaker_file, row.cam_table, source=f"of breaker {row.name!r}",
+                                    default_name=row.name)
         _breaker_cache[row.content_sha256] = breaker
         return breaker
 
@@ -94,14 +85,25 @@ def breaker_model(row: BreakerRow):
 # -- operations and fits -----------------------------------------------------------------------
 def create_operation(session: Session, *, capture_key: str, breaker_id: int, kind: str,
                      occurred_at: datetime, source: str, capture_path: str, capture_sha256: str,
-                     flags: list, sample_rate: float, n_samples: int) -> tuple[OperationRow, bool]:
-    """Store an operation and queue its fit. Idempotent on ``capture_key``: returns (row, created)."""
+                     flags: list, sample_rate: float, n_samples: int, clock_suspect: bool = False,
+                     temperature_c: float | None = None,
+                     temperature_source: str | None = None) -> tuple[OperationRow, bool]:
+    """Store an operation and queue its fit. Idempotent on ``capture_key``: returns (row, created).
+
+    ``temperature_c`` [C]: the operation's own (upload field, agent, capture channel); without
+    it the breaker's latest SCADA temperature applies (service/storage/crud_alarms.py)."""
     existing = session.scalar(select(OperationRow).where(OperationRow.capture_key == capture_key))
     if existing is not None:
         return existing, False
     op = OperationRow(capture_key=capture_key, breaker_id=breaker_id, kind=kind, occurred_at=occurred_at,
                       source=source, capture_path=capture_path, capture_sha256=capture_sha256,
-                      flags=list(flags), sample_rate=float(sample_rate), n_samples=int(n_samples))
+                      flags=list(flags), sample_rate=float(sample_rate), n_samples=int(n_samples),
+                      clock_suspect=bool(clock_suspect))
+    from service.storage.crud_alarms import operation_temperature
+
+    op.temperature_c, op.temperature_source = operation_temperature(
+        session, breaker_id=breaker_id, occurred_at=occurred_at, temperature_c=temperature_c,
+        source=temperature_source)
     session.add(op)
     session.flush()
     session.add(FitRow(operation_id=op.id, breaker_id=breaker_id, kind=kind, status="queued"))
@@ -117,8 +119,12 @@ def get_operation(session: Session, *, operation_id: int) -> OperationRow | None
     return session.get(OperationRow, operation_id)
 
 
-def list_operations(session: Session, *, breaker_id: int, limit: int = 50) -> list[OperationRow]:
-    q = (select(OperationRow).where(OperationRow.breaker_id == breaker_id)
+def list_operations(session: Session, *, breaker_id: int, limit: int = 50,
+                    clock_suspect: bool | None = None) -> list[OperationRow]:
+    q = select(OperationRow).where(OperationRow.breaker_id == breaker_id)
+    if clock_suspect is not None:
+        q = q.where(OperationRow.clock_suspect.is_(clock_suspect))
+    q = (q
          .order_by(OperationRow.occurred_at.desc(), OperationRow.id.desc()).limit(limit))
     return list(session.scalars(q))
 
@@ -213,7 +219,8 @@ def get_fit(session: Session, *, operation_id: int) -> FitRow | None:
 def latest_opening_fit(session: Session, *, breaker_id: int, before: datetime | None = None) -> FitRow | None:
     """The breaker's latest good opening fit (done, with AO), optionally before a time."""
     q = (select(FitRow).join(OperationRow, OperationRow.id == FitRow.operation_id)
-         .where(FitRow.breaker_id == breaker_id, FitRow.kind == "open", FitRow.status == "done"))
+         .where(FitRow.breaker_id == breaker_id, FitRow.kind == "open", FitRow.status == "done",
+                OperationRow.clock_suspect.is_(False)))
     if before is not None:
         q = q.where(OperationRow.occurred_at <= before)
     q = q.order_by(OperationRow.occurred_at.desc(), FitRow.id.desc()).limit(5)
@@ -228,7 +235,7 @@ def latest_good_fit(session: Session, *, breaker_id: int, kind: str,
     """The breaker's latest identifiable finished fit of one kind (a warm-start prior)."""
     q = (select(FitRow).join(OperationRow, OperationRow.id == FitRow.operation_id)
          .where(FitRow.breaker_id == breaker_id, FitRow.kind == kind, FitRow.status == "done",
-                FitRow.identifiable.is_not(False)))
+                FitRow.identifiable.is_not(False), OperationRow.clock_suspect.is_(False)))
     if before is not None:
         q = q.where(OperationRow.occurred_at <= before)
     if exclude_operation is not None:
@@ -237,15 +244,22 @@ def latest_good_fit(session: Session, *, breaker_id: int, kind: str,
 
 
 def latest_fit(session: Session, *, breaker_id: int, kind: str) -> FitRow | None:
+    """The breaker's latest finished fit of one kind; clock-suspect operations are never latest."""
     q = (select(FitRow).join(OperationRow, OperationRow.id == FitRow.operation_id)
-         .where(FitRow.breaker_id == breaker_id, FitRow.kind == kind, FitRow.status == "done")
+         .where(FitRow.breaker_id == breaker_id, FitRow.kind == kind, FitRow.status == "done",
+                OperationRow.clock_suspect.is_(False))
          .order_by(OperationRow.occurred_at.desc(), FitRow.id.desc()).limit(1))
     return session.scalar(q)
 
 
 def parameter_trend(session: Session, *, breaker_id: int, name: str, since: datetime | None = None,
-                    limit: int = 5000) -> list[ParameterValueRow]:
+                    limit: int = 5000, clock_suspect: bool | None = False) -> list[ParameterValueRow]:
+    """A parameter's values, oldest first; by default without clock-suspect operations
+    (``clock_suspect``: True = only those, None = all)."""
     q = select(ParameterValueRow).where(ParameterValueRow.breaker_id == breaker_id, ParameterValueRow.name == name)
+    if clock_suspect is not None:
+        q = q.where(ParameterValueRow.operation_id.in_(select(OperationRow.id).where(
+            OperationRow.breaker_id == breaker_id, OperationRow.clock_suspect.is_(clock_suspect))))
     if since is not None:
         q = q.where(ParameterValueRow.occurred_at >= since)
     q = q.order_by(ParameterValueRow.occurred_at, ParameterValueRow.id).limit(limit)
@@ -256,10 +270,16 @@ def good_parameter_history(session: Session, *, breaker_id: int, name: str,
                            since: datetime | None = None) -> list[ParameterValueRow]:
     """Identifiable values of a parameter, oldest first, for the drift detector."""
     q = select(ParameterValueRow).where(ParameterValueRow.breaker_id == breaker_id,
-                                        ParameterValueRow.name == name, ParameterValueRow.identifiable.is_(True))
+                                        ParameterValueRow.name == name, ParameterValueRow.identifiable.is_(True),
+                                        ParameterValueRow.operation_id.not_in(_suspect_ids(breaker_id)))
     if since is not None:
         q = q.where(ParameterValueRow.occurred_at >= since)
     return list(session.scalars(q.order_by(ParameterValueRow.occurred_at, ParameterValueRow.id)))
+
+
+def _suspect_ids(breaker_id: int):
+    """The breaker's clock-suspect operation ids (a subquery)."""
+    return select(OperationRow.id).where(OperationRow.breaker_id == breaker_id, OperationRow.clock_suspect.is_(True))
 
 
 # -- alarms ------------------------------------------------------------------------------------

@@ -11,6 +11,8 @@ from datetime import datetime
 from sqlalchemy import Integer, cast, func, select, update
 from sqlalchemy.orm import Session
 
+from .crud import _suspect_ids
+
 from .models import (AlarmRow, ApiKeyRow, BreakerRow, DaqStatusRow, DiagnosisRow, FitRow, OperationRow,
                      ParameterValueRow, WebSessionRow, utcnow)
 
@@ -51,7 +53,8 @@ def purge_web_sessions(session: Session, *, before: datetime) -> int:
 def last_operation_times(session: Session, *, breaker_id: int) -> dict[str, datetime | None]:
     """{"open": time, "close": time} of the breaker's latest opening and closing."""
     q = (select(OperationRow.kind, func.max(OperationRow.occurred_at))
-         .where(OperationRow.breaker_id == breaker_id).group_by(OperationRow.kind))
+         .where(OperationRow.breaker_id == breaker_id, OperationRow.clock_suspect.is_(False))
+         .group_by(OperationRow.kind))
     out = {"open": None, "close": None}
     for kind, t in session.execute(q):
         if isinstance(t, str):  # SQLite returns the aggregate of a DateTime as text
@@ -67,7 +70,8 @@ def recent_values(session: Session, *, breaker_id: int, name: str, limit: int = 
     """The parameter's latest ``limit`` values as (occurred_at, value, ci_low, ci_high), oldest first."""
     q = (select(ParameterValueRow.occurred_at, ParameterValueRow.value, ParameterValueRow.ci_low,
                 ParameterValueRow.ci_high)
-         .where(ParameterValueRow.breaker_id == breaker_id, ParameterValueRow.name == name)
+         .where(ParameterValueRow.breaker_id == breaker_id, ParameterValueRow.name == name,
+                ParameterValueRow.operation_id.not_in(_suspect_ids(breaker_id)))
          .order_by(ParameterValueRow.occurred_at.desc(), ParameterValueRow.id.desc()).limit(limit))
     return list(reversed([tuple(r) for r in session.execute(q)]))
 
@@ -95,7 +99,8 @@ def parameter_rows_after(session: Session, *, breaker_id: int, after_id: int) ->
     q = (select(ParameterValueRow.id, ParameterValueRow.name, ParameterValueRow.occurred_at,
                 ParameterValueRow.operation_id, ParameterValueRow.value, ParameterValueRow.ci_low,
                 ParameterValueRow.ci_high, ParameterValueRow.identifiable)
-         .where(ParameterValueRow.breaker_id == breaker_id, ParameterValueRow.id > after_id)
+         .where(ParameterValueRow.breaker_id == breaker_id, ParameterValueRow.id > after_id,
+                ParameterValueRow.operation_id.not_in(_suspect_ids(breaker_id)))
          .order_by(ParameterValueRow.occurred_at, ParameterValueRow.id))
     return [tuple(r) for r in session.execute(q)]
 
@@ -150,8 +155,12 @@ def change_marker(session: Session) -> str:
     alarms = session.execute(select(func.count(), func.max(AlarmRow.updated_at))).one()
     diag = session.execute(select(func.count(), func.max(DiagnosisRow.finished_at))
                            .where(DiagnosisRow.status.in_(("done", "failed")))).one()
+    from .models import BreakerDiagnosisRow
+
+    bdiag = session.execute(select(func.count(), func.max(BreakerDiagnosisRow.id),
+                                   func.max(BreakerDiagnosisRow.finished_at))).one()
     brk = session.execute(select(func.count(), func.max(BreakerRow.baseline_reset_at))).one()
     # the DAQ links: connection state and error counters (not the heartbeat, which ticks every second)
     daq = session.execute(select(func.count(), func.sum(cast(DaqStatusRow.connected, Integer)),
                                  func.sum(DaqStatusRow.frames_dropped), func.sum(DaqStatusRow.crc_errors))).one()
-    return "|".join(str(v) for row in (ops, fits, alarms, diag, brk, daq) for v in row)
+    return "|".join(str(v) for row in (ops, fits, alarms, diag, bdiag, brk, daq) for v in row)

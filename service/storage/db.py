@@ -16,13 +16,19 @@ class DatabaseUnavailable(RuntimeError):
     """The database cannot be reached or is locked; the caller spools and retries."""
 
 
-def make_engine(url: str, *, sqlite_timeout_s: float = 5.0) -> Engine:
-    """An engine for ``url``. SQLite gets WAL, foreign keys and a bounded lock wait."""
+def make_engine(url: str, *, sqlite_timeout_s: float = 5.0, pool_size: int = 10, pool_timeout_s: float = 10.0) -> Engine:
+    """An engine for ``url``. SQLite gets WAL, foreign keys and a bounded lock wait.
+
+    ``pool_size``: connections kept (the service passes its thread count plus its background
+    threads, ``[server]``); no overflow, so a caller waits at most ``pool_timeout_s`` and then
+    gets ``sqlalchemy.exc.TimeoutError`` (answered 503, never 500)."""
     if url.startswith("sqlite"):
         path = url.split("///", 1)[-1]
         if path and path != ":memory:":
             Path(path).parent.mkdir(parents=True, exist_ok=True)
-        engine = create_engine(url, connect_args={"timeout": sqlite_timeout_s, "check_same_thread": False})
+        _private_file(path)
+        engine = create_engine(url, connect_args={"timeout": sqlite_timeout_s, "check_same_thread": False},
+                               pool_size=pool_size, max_overflow=0, pool_timeout=pool_timeout_s)
 
         @event.listens_for(engine, "connect")
         def _pragmas(dbapi_conn, _record):
@@ -31,9 +37,23 @@ def make_engine(url: str, *, sqlite_timeout_s: float = 5.0) -> Engine:
             cur.execute("PRAGMA journal_mode=WAL")
             cur.execute("PRAGMA synchronous=NORMAL")
             cur.close()
+            _private_file(path)
+            for suffix in ("-wal", "-shm"):
+                _private_file(path + suffix)
         return engine
-    return create_engine(url, pool_pre_ping=True, pool_size=10, max_overflow=10,
+    return create_engine(url, pool_pre_ping=True, pool_size=pool_size, max_overflow=0, pool_timeout=pool_timeout_s,
                          connect_args={"connect_timeout": 5} if "psycopg" in url or url.startswith("postgres") else {})
+
+
+def _private_file(path: str) -> None:
+    """Mode 0600 on a database file, whatever the umask (docs/security.md: file modes)."""
+    import os
+
+    if path and path != ":memory:" and os.path.exists(path):
+        try:
+            os.chmod(path, 0o600)
+        except OSError:
+            pass
 
 
 @lru_cache(maxsize=8)

@@ -5,7 +5,7 @@ from __future__ import annotations
 from datetime import datetime, timezone
 
 from sqlalchemy import (JSON, BigInteger, Boolean, DateTime, Float, ForeignKey, Index, Integer, String, Text,
-                        TypeDecorator, UniqueConstraint)
+                        TypeDecorator, UniqueConstraint, false, true)
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 
 
@@ -56,6 +56,15 @@ class BreakerRow(Base):
     cam_table: Mapped[str] = mapped_column(Text)
     content_sha256: Mapped[str] = mapped_column(String(64))
     baseline_reset_at: Mapped[datetime | None]
+    # Latest temperature SCADA wrote (PUT /api/v1/breakers/{name}/temperature) [C]; it applies
+    # to operations that carry none of their own.
+    scada_temperature_c: Mapped[float | None] = mapped_column(Float)
+    scada_temperature_at: Mapped[datetime | None]
+    # Out of service (maintenance): fits are not fed to the drift detector; the baseline is
+    # reset when the breaker returns to service.
+    out_of_service_since: Mapped[datetime | None]
+    out_of_service_by: Mapped[str | None] = mapped_column(String(120))
+    out_of_service_reason: Mapped[str | None] = mapped_column(Text)
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     updated_at: Mapped[datetime] = mapped_column(default=utcnow)
 
@@ -76,6 +85,11 @@ class OperationRow(Base):
     flags: Mapped[list] = mapped_column(default=list)
     sample_rate: Mapped[float] = mapped_column(Float)
     n_samples: Mapped[int] = mapped_column(Integer)
+    # dated more than [clock_tolerance_s] after it arrived: kept and shown, but never "latest",
+    # never on SCADA and never in the drift baseline (migration 0006)
+    clock_suspect: Mapped[bool] = mapped_column(Boolean, default=False, server_default=false(), index=True)
+    temperature_c: Mapped[float | None] = mapped_column(Float)  # ambient/mechanism [C]
+    temperature_source: Mapped[str | None] = mapped_column(String(16))  # channel|upload|agent|scada
     fit: Mapped[FitRow | None] = relationship(back_populates="operation", uselist=False, lazy="selectin")
 
     __table_args__ = (Index("ix_operations_breaker_time", "breaker_id", "occurred_at"),)
@@ -174,6 +188,28 @@ class AlarmRow(Base):
     acknowledged_by: Mapped[str | None] = mapped_column(String(120))
     ack_comment: Mapped[str | None] = mapped_column(Text)
     cleared_at: Mapped[datetime | None]
+    # First-out (ISA-18.2): raised while no other alarm of the breaker was active.
+    first_out: Mapped[bool] = mapped_column(Boolean, default=True, server_default=true())
+    shelved_until: Mapped[datetime | None]
+    shelved_at: Mapped[datetime | None]
+    shelved_by: Mapped[str | None] = mapped_column(String(120))
+    shelve_reason: Mapped[str | None] = mapped_column(Text)
+
+
+class AlarmActionRow(Base):
+    """Audit trail of what people did to alarms and breakers: who, when, why."""
+
+    __tablename__ = "alarm_actions"
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    breaker_id: Mapped[int] = mapped_column(ForeignKey("breakers.id", ondelete="CASCADE"))
+    alarm_id: Mapped[int | None] = mapped_column(ForeignKey("alarms.id", ondelete="CASCADE"))
+    action: Mapped[str] = mapped_column(String(24))
+    by: Mapped[str] = mapped_column(String(120))
+    at: Mapped[datetime] = mapped_column(default=utcnow)
+    reason: Mapped[str] = mapped_column(Text, default="")
+    until: Mapped[datetime | None]
+
+    __table_args__ = (Index("ix_alarm_actions_breaker", "breaker_id", "at"),)
 
 
 class DriftStateRow(Base):
@@ -273,3 +309,34 @@ class CapturePreviewRow(Base):
     pruned_at: Mapped[datetime] = mapped_column(default=utcnow)
     bytes_freed: Mapped[int] = mapped_column(BigInteger, default=0)
     preview: Mapped[dict] = mapped_column(default=dict)  # {"t": [s], "travel": [rad], "vibration": [g] | None}
+
+
+class BreakerDiagnosisRow(Base):
+    """A gap diagnosis of a breaker's last N stored operations of one kind (issue 20).
+
+    ``dedupe_key`` is the selection's key (breaker, operation, the operation ids) while the row
+    is queued, running or done, and NULL once it failed: an identical request finds the row by
+    this unique column instead of queuing a second job, and a failed one may be asked again.
+    """
+
+    __tablename__ = "breaker_diagnoses"
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    breaker_id: Mapped[int] = mapped_column(ForeignKey("breakers.id", ondelete="CASCADE"))
+    operation: Mapped[str] = mapped_column(String(8))  # open | close
+    last_n: Mapped[int] = mapped_column(Integer)  # N asked for
+    operation_ids: Mapped[list] = mapped_column(default=list)  # the operations diagnosed, oldest first
+    skipped: Mapped[list] = mapped_column(default=list)  # [{"operation_id", "reason"}] left out
+    selection_key: Mapped[str] = mapped_column(String(64))
+    dedupe_key: Mapped[str | None] = mapped_column(String(64))
+    status: Mapped[str] = mapped_column(String(10), default="queued", index=True)  # queued running done failed
+    result: Mapped[dict | None]
+    failure_reason: Mapped[str | None] = mapped_column(Text)
+    requested_by: Mapped[str | None] = mapped_column(String(120))
+    requested_key_id: Mapped[int | None] = mapped_column(ForeignKey("api_keys.id", ondelete="SET NULL"))
+    requested_role: Mapped[str] = mapped_column(String(10))
+    requested_at: Mapped[datetime] = mapped_column(default=utcnow)
+    started_at: Mapped[datetime | None]
+    finished_at: Mapped[datetime | None]
+
+    __table_args__ = (Index("ix_breaker_diagnoses_breaker", "breaker_id", "id"),
+                      UniqueConstraint("dedupe_key", name="uq_breaker_diagnoses_dedupe_key"))

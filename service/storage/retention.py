@@ -22,6 +22,8 @@ from pathlib import Path
 import numpy as np
 from sqlalchemy import select
 
+from service.decimation import minmax_indices
+
 from .models import (AlarmRow, BreakerRow, CapturePreviewRow, DiagnosisRow, DriftStateRow, FitRow,
                      OperationRow, utcnow)
 from .spool import capture_files
@@ -79,6 +81,11 @@ def protected_operations(session) -> dict[int, str]:
          "fit pending")
     mark(session.scalars(select(DiagnosisRow.operation_id).where(DiagnosisRow.status.in_(("queued", "running")))),
          "diagnosis pending")
+    from .models import BreakerDiagnosisRow
+
+    for (ids,) in session.execute(select(BreakerDiagnosisRow.operation_ids)
+                                  .where(BreakerDiagnosisRow.status.in_(("queued", "running")))):
+        mark(ids or [], "breaker diagnosis pending")
     return out
 
 
@@ -173,17 +180,6 @@ def plan_prune(session, *, policy, capture_dir: Path, now: datetime | None = Non
 
 
 # -- the preview -------------------------------------------------------------------------------
-def _minmax_indices(y: np.ndarray, buckets: int) -> np.ndarray:
-    """Each bucket's minimum and maximum sample index, plus the first and last sample."""
-    n = y.size
-    if n <= 2 * buckets:
-        return np.arange(n)
-    edges = np.linspace(0, n, buckets + 1).astype(int)
-    lo = edges[:-1] + np.array([int(np.argmin(y[a:b])) for a, b in zip(edges[:-1], edges[1:])])
-    hi = edges[:-1] + np.array([int(np.argmax(y[a:b])) for a, b in zip(edges[:-1], edges[1:])])
-    return np.unique(np.concatenate([lo, hi, [0, n - 1]]))
-
-
 def capture_preview(t, travel, vibration=None, *, sample_rate: float, buckets: int = 100) -> dict:
     """Decimated preview of a capture: samples at each bucket's minimum and maximum of every
     channel, so the travel's shape and every vibration shock stay visible.
@@ -191,10 +187,10 @@ def capture_preview(t, travel, vibration=None, *, sample_rate: float, buckets: i
     t [s], travel [rad], vibration [g] or None; returns {"t", "travel", "vibration",
     "sample_rate" [Hz], "n_samples", "buckets"} with plain lists (JSON)."""
     t, travel = np.asarray(t, float), np.asarray(travel, float)
-    idx = _minmax_indices(travel, buckets)
+    idx = minmax_indices(travel, buckets)
     if vibration is not None:
         vibration = np.asarray(vibration, float)
-        idx = np.union1d(idx, _minmax_indices(vibration, buckets))
+        idx = np.union1d(idx, minmax_indices(vibration, buckets))
     return {"t": np.round(t[idx], 7).tolist(), "travel": np.round(travel[idx], 6).tolist(),
             "vibration": None if vibration is None else np.round(vibration[idx], 4).tolist(),
             "sample_rate": float(sample_rate), "n_samples": int(travel.size), "buckets": int(buckets)}
@@ -202,11 +198,10 @@ def capture_preview(t, travel, vibration=None, *, sample_rate: float, buckets: i
 
 def _preview_from_file(path: str, breaker, buckets: int) -> dict:
     from drivers.capture import CaptureError
-    from service.acquisition.capture_file import read_capture
+    from service.acquisition.capture_file import read_stored_capture
 
     try:
-        cap = read_capture(path, travel_channel=breaker.channels.get("travel", "travel"),
-                           vibration_channel=breaker.channels.get("vibration", "vibration"))
+        cap = read_stored_capture(path, breaker)
     except (CaptureError, OSError, ValueError) as exc:
         return {"t": [], "travel": [], "vibration": None, "unreadable": str(exc)}
     return capture_preview(cap.t, cap.travel, cap.vibration, sample_rate=cap.sample_rate, buckets=buckets)

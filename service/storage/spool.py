@@ -19,22 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from drivers.capture import Capture
-
-
-def _fsync_dir(path: Path) -> None:
-    try:
-        fd = os.open(path, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
-
-
-def _fsync_file(path: Path) -> None:
-    with open(path, "rb+") as fh:
-        os.fsync(fh.fileno())
+from service.durable import fsync_dir, fsync_file, write_durably
 
 
 def sha256_file(path: Path) -> str:
@@ -81,8 +66,8 @@ def write_capture_file(capture: Capture, directory: Path, key: str) -> tuple[Pat
         os.replace(tmp, main)
     files = capture_files(main)
     for p in files:
-        _fsync_file(p)
-    _fsync_dir(directory)
+        fsync_file(p)
+    fsync_dir(directory)
     return main, capture_digest(files)
 
 
@@ -100,14 +85,7 @@ class Spool:
     def put(self, entry: dict) -> Path:
         key = entry["capture_key"]
         path = self.directory / f"{key}.json"
-        tmp = path.with_suffix(".tmp")
-        with open(tmp, "w") as fh:
-            json.dump(entry, fh)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-        _fsync_dir(self.directory)
-        return path
+        return write_durably(path, json.dumps(entry))
 
     def remove(self, key: str) -> None:
         try:
@@ -132,3 +110,15 @@ class Spool:
 
 def utc_text(t: datetime) -> str:
     return t.astimezone(timezone.utc).isoformat().replace("+00:00", "Z")
+
+
+def write_capture_bytes(files: dict[str, bytes], directory: Path, key: str) -> Path:
+    """Store an uploaded capture byte for byte: ``files`` maps a suffix (".cfg", ".dat" or
+    ".cff") to its bytes. Each file is written under a temporary name, fsynced and renamed, then
+    the folder is fsynced. Returns the main file (the .cfg or the .cff)."""
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    for suffix, data in files.items():
+        write_durably(directory / f"{key}{suffix}", data, sync_dir=False)
+    fsync_dir(directory)
+    return directory / f"{key}{'.cff' if '.cff' in files else '.cfg'}"

@@ -78,6 +78,9 @@ def register(subparsers) -> None:
 def _cmd_study(args) -> int:
     if args.workers is not None and args.workers < 1:
         raise ValueError("--workers must be at least 1")
+    from service.plots import require_matplotlib
+
+    require_matplotlib("study figures")  # every study writes PNGs; say so before hours of work
     summary = run_study(args.name, args.out, seed=args.seed, quick=args.quick, workers=args.workers)
     verdict = summary.get("acceptance", {}) if isinstance(summary, dict) else {}
     print(f"study {args.name}: results in {args.out}")

@@ -9,6 +9,7 @@ stratified CV on the training fold only.
 from __future__ import annotations
 
 import numpy as np
+from scipy.stats import median_abs_deviation
 
 
 class NearestNominal:
@@ -25,13 +26,21 @@ class NearestNominal:
         spread of one condition's estimates, default); ``global``: each parameter's standard
         deviation over the whole training fold.
 
+    setting_columns : sequence of int, optional
+        Design-nominal vectors: only these columns (the parameters the design says the setting
+        moves, e.g. BO for the opening spring's nut) get a nominal per condition; every other
+        column's nominal is its median over all training conditions. A unit's offset in those
+        other parameters (manufacturing tolerance) then adds the same amount to every distance
+        and cannot move the decision. None: every column per condition (issue 5's rule).
+
     A sample whose fit failed (NaN) is assigned the label -1 (never correct).
     """
 
-    def __init__(self, normalise: str = "within"):
+    def __init__(self, normalise: str = "within", setting_columns=None):
         if normalise not in ("within", "global"):
             raise ValueError(f"normalise must be 'within' or 'global', got {normalise!r}")
         self.normalise = normalise
+        self.setting_columns = None if setting_columns is None else tuple(setting_columns)
 
     def fit(self, X, y):
         X, y = np.asarray(X, float), np.asarray(y)
@@ -39,12 +48,16 @@ class NearestNominal:
         X, y = X[ok], y[ok]
         self.classes_ = np.unique(y)
         self.nominal_ = np.array([np.median(X[y == c], axis=0) for c in self.classes_])
+        if self.setting_columns is not None:
+            common = np.ones(X.shape[1], dtype=bool)
+            common[list(self.setting_columns)] = False
+            self.nominal_[:, common] = np.median(X[:, common], axis=0)
         if self.normalise == "global":
             scale = X.std(axis=0, ddof=1)
         else:
             resid = X - self.nominal_[np.searchsorted(self.classes_, y)]
             # Robust spread (MAD): one outlying fit must not flatten a parameter's weight.
-            scale = 1.4826 * np.median(np.abs(resid - np.median(resid, axis=0)), axis=0)
+            scale = median_abs_deviation(resid, axis=0, scale="normal")
         self.scale_ = np.where(scale > 0, scale, 1.0)
         return self
 
@@ -156,3 +169,26 @@ def _plain(v):
     if isinstance(v, np.generic):
         return v.item()
     return v
+
+
+def train_test(make, X_train, y_train, X_test, y_test) -> dict:
+    """Train one classifier on one set and score it on another (the cross-unit protocol).
+
+    Returns
+    -------
+    dict
+        ``accuracy`` (fraction), ``confusion`` (K × K, rows true; a rejected sample, label -1,
+        counts in no column), ``best_params`` (when tuned).
+    """
+    from threadpoolctl import threadpool_limits
+
+    k = int(max(np.max(y_train), np.max(y_test))) + 1
+    with threadpool_limits(1):
+        clf = make().fit(X_train, y_train)
+        pred = np.asarray(clf.predict(X_test))
+    conf = np.zeros((k, k), dtype=int)
+    for t, p in zip(y_test, pred):
+        if p >= 0:
+            conf[t, p] += 1
+    return {"accuracy": float(np.mean(pred == y_test)), "confusion": conf.tolist(),
+            "best_params": {str(a): _plain(b) for a, b in getattr(clf, "best_params_", {}).items()}}

@@ -8,6 +8,11 @@ the reduced model when ``spec.source == "reduced"`` — and records it like the 
 16-bit quantisation, latch shock). :func:`build_dataset` fits every capture in a process pool and
 keeps the estimates and the baselines' raw-travel features in an ``.npz`` so the classification
 and robustness studies do not refit.
+
+The Table 9 set (issue 22) adds field nuisance on the same seam: trigger jitter, sensor offset
+and gain, per-capture SNR (:func:`draw_recording`, a stream of its own so the clean sets stay
+bit-identical), and a second unit of the design drawn within manufacturing tolerance
+(:func:`unit_breaker`); the fit of every unit gets the design breaker, never the drawn one.
 """
 
 from __future__ import annotations
@@ -16,6 +21,7 @@ import dataclasses
 import hashlib
 import json
 from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -56,6 +62,22 @@ class DatasetSpec:
         Half-width of the uniform spread of the buffer damping cb (oil temperature) [-].
     onset_jitter_s : float
         Half-width of the uniform spread of the latch-shock-to-motion delay [s] (0: fixed).
+    trigger_delay_s : (float, float) or None
+        Range of the uniform delay from the record start to the onset of motion [s] (trigger
+        jitter); None: the fixed 20 ms idle lead of ``synthesize_capture``.
+    offset_rad : float
+        Half-width of the uniform sensor zero offset [rad].
+    gain_spread : float
+        Half-width of the uniform sensor gain error [-].
+    snr_db_range : (float, float) or None
+        Range of the uniform per-capture SNR [dB]; overrides ``noise_rad`` when set.
+    unit : int
+        Which breaker of the design: 1 is the reference itself; any other number is a unit
+        drawn within the manufacturing tolerances below (seeded by ``seed`` and ``unit``).
+    tolerance : float
+        Half-width of the uniform manufacturing spread of kO, J2 and cb for units other than 1 [-].
+    alpha0_tolerance_rad : float
+        Half-width of the uniform spread of the buffer engagement angle α0 for those units [rad].
     """
 
     operation: str = "open"
@@ -68,6 +90,18 @@ class DatasetSpec:
     friction_spread: float = 0.02
     damping_spread: float = 0.03
     onset_jitter_s: float = 0.0
+    trigger_delay_s: tuple | None = None
+    offset_rad: float = 0.0
+    gain_spread: float = 0.0
+    snr_db_range: tuple | None = None
+    unit: int = 1
+    tolerance: float = 0.0
+    alpha0_tolerance_rad: float = 0.0
+
+    @property
+    def field_nuisance(self) -> bool:
+        """Whether the recording carries trigger, sensor or SNR nuisance (the field dataset)."""
+        return bool(self.trigger_delay_s or self.offset_rad or self.gain_spread or self.snr_db_range)
 
     @property
     def parameter_names(self) -> tuple:
@@ -109,6 +143,15 @@ def condition_breaker(base: Breaker, spec: DatasetSpec, condition: int,
     return dataclasses.replace(base, **changes)
 
 
+def setting_parameters(spec: DatasetSpec, base: Breaker | None = None) -> tuple:
+    """The model parameters whose design value moves with the spring setting (Eq. 8/12):
+    those that differ between the designs of condition 0 and condition 1 (BO for openings)."""
+    base = base or load_reference()
+    p0 = model_parameters(condition_breaker(base, spec, 0), spec.operation)
+    p1 = model_parameters(condition_breaker(base, spec, 1), spec.operation)
+    return tuple(k for k in spec.parameter_names if not np.isclose(p0[k], p1[k], rtol=1e-9, atol=0))
+
+
 def bo_step(base: Breaker) -> float:
     """Theoretical rise of BO per condition, kO·Δx·rO/J2 [s^-2]."""
     return base.kO * STEP_M * base.rO / base.J2
@@ -136,21 +179,66 @@ def _with_end_of_travel(simulate):
     return wrapped
 
 
-def make_capture(spec: DatasetSpec, condition: int, index: int, *, base: Breaker | None = None):
+NUISANCE_NAMES = ("trigger_delay_s", "offset_rad", "gain", "friction_factor", "damping_factor",
+                  "snr_db", "noise_rad")
+
+
+def unit_breaker(base: Breaker, spec: DatasetSpec) -> Breaker:
+    """The true constants of ``spec.unit``: the reference itself for unit 1, else a draw of
+    kO, J2, cb (each ±``tolerance``) and α0 (±``alpha0_tolerance_rad``) around the design."""
+    if spec.unit == 1:
+        return base
+    rng = np.random.default_rng([spec.seed, 7919, spec.unit])  # 7919: the unit stream's tag
+    tol = spec.tolerance
+    return dataclasses.replace(
+        base, kO=base.kO * (1 + rng.uniform(-tol, tol)), J2=base.J2 * (1 + rng.uniform(-tol, tol)),
+        cb=base.cb * (1 + rng.uniform(-tol, tol)),
+        alpha0=base.alpha0 + rng.uniform(-spec.alpha0_tolerance_rad, spec.alpha0_tolerance_rad))
+
+
+def draw_recording(spec: DatasetSpec, condition: int, index: int, noise_for) -> dict:
+    """This capture's trigger delay [s], sensor offset [rad], gain [-], SNR [dB] and noise [rad].
+
+    A stream of its own (not the breaker's), so switching the field nuisance on leaves the
+    breaker spread and the simulation of every capture unchanged.
+    """
+    rng = np.random.default_rng([spec.seed, condition, index, 0 if spec.operation == "open" else 1,
+                                 spec.unit, 104729])  # 104729: the recording stream's tag
+    delay = float(rng.uniform(*spec.trigger_delay_s)) if spec.trigger_delay_s else 0.02
+    offset = float(rng.uniform(-spec.offset_rad, spec.offset_rad))
+    gain = float(1.0 + rng.uniform(-spec.gain_spread, spec.gain_spread))
+    if spec.snr_db_range:
+        snr = float(rng.uniform(*spec.snr_db_range))
+        noise = noise_for(snr)
+    else:
+        noise, snr = spec.noise_rad, float("nan")
+    return {"trigger_delay_s": delay, "offset_rad": offset, "gain": gain, "snr_db": snr,
+            "noise_rad": noise, "rng": rng}
+
+
+def make_capture(spec: DatasetSpec, condition: int, index: int, *, base: Breaker | None = None,
+                 details: bool = False):
     """One recorded operation of ``condition`` (0-based), run ``index``: the seam of the studies.
 
     Returns
     -------
     capture : Capture
     truth : dict
-        The model parameters the simulator was given (its design values for this run).
+        The model parameters the simulator was given (this unit's constants for this run).
     breaker : Breaker
-        This condition's breaker as the operator knows it (pre-compression set, no spread),
-        which the fit uses.
+        This condition's breaker as the operator knows it: the *design* values with the
+        pre-compression set (no run spread, no unit tolerance), which the fit uses.
+    nuisance : dict
+        Only with ``details``: the drawn values named in :data:`NUISANCE_NAMES`.
     """
     base = base or load_reference()
-    rng = np.random.default_rng([spec.seed, condition, index, 0 if spec.operation == "open" else 1])
-    run = condition_breaker(base, spec, condition, rng)
+    unit = unit_breaker(base, spec)
+    if spec.unit == 1:  # the seed sequence the clean datasets have always used
+        rng = np.random.default_rng([spec.seed, condition, index, 0 if spec.operation == "open" else 1])
+    else:
+        rng = np.random.default_rng([spec.seed, condition, index, 0 if spec.operation == "open" else 1,
+                                     spec.unit])
+    run = condition_breaker(unit, spec, condition, rng)
     params = model_parameters(run, spec.operation)
     simulate = None
     if spec.source == "prototype":
@@ -161,9 +249,50 @@ def make_capture(spec: DatasetSpec, condition: int, index: int, *, base: Breaker
     elif spec.source != "reduced":
         raise ValueError(f"source must be 'prototype' or 'reduced', got {spec.source!r}")
     lead = 0.4e-3 + (rng.uniform(-spec.onset_jitter_s, spec.onset_jitter_s) if spec.onset_jitter_s else 0.0)
-    cap, _ = synthesize_capture(run, spec.operation, params, rng=rng, noise_rad=spec.noise_rad,
-                                simulate=simulate, shock_lead_s=lead)
-    return cap, params, condition_breaker(base, spec, condition)
+    friction = (run.TOf / unit.TOf) if spec.operation == "open" else (run.TCf / unit.TCf)
+    nuisance = {"friction_factor": float(friction), "damping_factor": float(run.cb / unit.cb)}
+    if not spec.field_nuisance:
+        cap, _ = synthesize_capture(run, spec.operation, params, rng=rng, noise_rad=spec.noise_rad,
+                                    simulate=simulate, shock_lead_s=lead)
+        nuisance.update(trigger_delay_s=0.02, offset_rad=0.0, gain=1.0, snr_db=float("nan"),
+                        noise_rad=spec.noise_rad)
+    else:
+        rec = draw_recording(spec, condition, index, lambda snr: noise_for_snr(snr, spec))
+        cap, _ = synthesize_capture(run, spec.operation, params, rng=rng, noise_rad=0.0, bits=None,
+                                    simulate=simulate, shock_lead_s=lead, pre_s=rec["trigger_delay_s"])
+        cap = _record(cap, rec)
+        nuisance.update({k: rec[k] for k in ("trigger_delay_s", "offset_rad", "gain", "snr_db", "noise_rad")})
+    out = (cap, params, condition_breaker(base, spec, condition))
+    return out + (nuisance,) if details else out
+
+
+def _record(cap, rec, bits: int = 16):
+    """The sensor and the DAQ: gain and zero offset, Gaussian noise, 16-bit codes over 0..π.
+
+    No clipping at 0: a mounting offset of a few mrad stays inside the converter's margin.
+    """
+    travel = rec["gain"] * np.asarray(cap.travel, float) + rec["offset_rad"]
+    travel = travel + rec["rng"].normal(0.0, rec["noise_rad"], size=travel.size)
+    lsb = np.pi / (2**bits - 1)
+    return dataclasses.replace(cap, travel=np.round(travel / lsb) * lsb)
+
+
+def zero_on_idle(capture, breaker: Breaker, operation: str):
+    """The capture with its travel referred to the closed (open) stop: minus the median of the
+    idle samples before the latch shock (the mechanism rests on its stop there, so any non-zero
+    reading is the sensor's zero offset). Unchanged when no idle part is found."""
+    from ..estimation.window import prepare_window
+
+    try:
+        w = prepare_window(capture, breaker, operation)
+    except FitError:
+        return capture
+    i = int(round(w.t_start * capture.sample_rate))
+    if i < 32:
+        return capture
+    travel = np.asarray(capture.travel, float)
+    rest = 0.0 if operation == "open" else breaker.stroke
+    return dataclasses.replace(capture, travel=travel - (np.median(travel[:i]) - rest))
 
 
 def travel_features(capture, *, window_s: float = FEATURE_WINDOW_S, points: int = FEATURE_POINTS):
@@ -178,12 +307,20 @@ def travel_features(capture, *, window_s: float = FEATURE_WINDOW_S, points: int 
     return np.add.reduceat(y, edges[:-1]) / np.diff(edges)
 
 
+def feature_window_s(spec: DatasetSpec) -> float:
+    """The baselines' window [s]: the latest motion onset plus the whole opening (65 ms)."""
+    latest = spec.trigger_delay_s[1] if spec.trigger_delay_s else 0.02
+    return FEATURE_WINDOW_S + (latest - 0.02)
+
+
 def _fit_task(task):
     spec, condition, index = task
     names = spec.parameter_names
-    cap, truth, breaker = make_capture(spec, condition, index)
-    features = travel_features(cap)
+    cap, truth, breaker, nuisance = make_capture(spec, condition, index, details=True)
+    features = travel_features(cap, window_s=feature_window_s(spec))
     try:
+        if spec.field_nuisance:
+            cap = zero_on_idle(cap, breaker, spec.operation)
         dc = truth.get("DC") if spec.operation == "close" else None
         res = fit_capture(cap, breaker, spec.operation, dc=dc, seed=1 + index)
         est = [res.parameters[k] for k in names]
@@ -191,7 +328,8 @@ def _fit_task(task):
         rmse, msg = res.rmse_rad, ""
     except FitError as exc:
         est, err, rmse, msg = [np.nan] * len(names), [np.nan] * len(names), np.nan, str(exc)
-    return (condition, index, est, err, [truth[k] for k in names], rmse, features, msg)
+    return (condition, index, est, err, [truth[k] for k in names], rmse, features, msg,
+            [nuisance[k] for k in NUISANCE_NAMES])
 
 
 def build_dataset(spec: DatasetSpec, cache_dir: Path | None = None, *,
@@ -203,7 +341,8 @@ def build_dataset(spec: DatasetSpec, cache_dir: Path | None = None, *,
     dict of arrays
         ``condition`` (n,), ``index`` (n,), ``estimates`` (n, p), ``stderr`` (n, p),
         ``truth`` (n, p), ``rmse_rad`` (n,), ``features`` (n, FEATURE_POINTS) [rad],
-        ``errors`` (n,) fit-failure messages ('' when fitted), ``names`` (p,).
+        ``errors`` (n,) fit-failure messages ('' when fitted), ``names`` (p,), ``nuisance``
+        (n, 7) the drawn recording and run values named in ``nuisance_names``.
         A failed fit leaves NaN estimates.
     """
     path = None
@@ -224,6 +363,8 @@ def build_dataset(spec: DatasetSpec, cache_dir: Path | None = None, *,
         "features": np.array([r[6] for r in rows], dtype=float),
         "errors": np.array([r[7] for r in rows], dtype=str),
         "names": np.array(spec.parameter_names, dtype=str),
+        "nuisance": np.array([r[8] for r in rows], dtype=float),
+        "nuisance_names": np.array(NUISANCE_NAMES, dtype=str),
     }
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -242,10 +383,13 @@ def noise_for_snr(snr: float, spec: DatasetSpec | None = None) -> float:
     return signal_rms(spec or DatasetSpec()) * 10.0 ** (-snr / 20.0)
 
 
+@lru_cache(maxsize=16)
 def signal_rms(spec: DatasetSpec) -> float:
-    """RMS travel [rad] over the valid interval of the noise-free nominal operation."""
+    """RMS travel [rad] over the valid interval of the noise-free nominal operation (the
+    design unit, condition 0, no recording nuisance)."""
     clean = dataclasses.replace(spec, noise_rad=0.0, friction_spread=0.0, damping_spread=0.0,
-                                onset_jitter_s=0.0)
+                                onset_jitter_s=0.0, trigger_delay_s=None, offset_rad=0.0,
+                                gain_spread=0.0, snr_db_range=None, unit=1)
     cap, _, _ = make_capture(clean, 0, 0)
     travel = np.asarray(cap.travel)
     moving = travel[int(0.02 * cap.sample_rate):]  # after synthesize_capture's 20 ms idle lead

@@ -97,21 +97,16 @@ def write_markdown(out_dir, name: str, title: str, rows=None, columns=None, *,
 
 def new_figure(*args, **kwargs):
     """``plt.subplots`` on the non-interactive Agg backend (safe in workers and on servers)."""
-    import matplotlib
+    from service.plots import pyplot
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt.subplots(*args, **kwargs)
+    return pyplot("study figures").subplots(*args, **kwargs)
 
 
 def save_figure(fig, path) -> Path:
     """Save ``fig`` as PNG at ``path`` (directories created) and close it."""
-    import matplotlib
+    from service.plots import pyplot
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot("study figures")
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120, bbox_inches="tight")

@@ -3,8 +3,9 @@
 
 Each scenario is the Table 9 dataset regenerated with one change (12 captures per condition,
 same seeds, so the baseline row reuses the main dataset's first 12 captures), refitted, and
-cross-validated with the same folds procedure. Called by ``classify.run``; ``run`` here writes
-the table alone.
+cross-validated with the same folds procedure. It runs on the clean set of issue 5
+(:func:`clean_spec`), not on the field set of ``hvcb study classify``:
+``service.studies.robustness.run(out_dir)`` writes it.
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .classification_methods import METHODS, classification_spec, compare_methods
+from .classification_methods import METHODS, clean_spec, compare_methods
 from .common import DEFAULT_WORKERS
 from .condition_data import DatasetSpec, build_dataset, noise_for_snr, snr_db
 from .report import write_json, write_markdown
@@ -89,5 +90,5 @@ def run(out_dir: Path, *, seed: int = DEFAULT_SEED, quick: bool = False,
         workers: int = DEFAULT_WORKERS) -> dict:
     """The robustness table alone (the classify study also writes it)."""
 
-    spec = classification_spec(seed, quick)
+    spec = clean_spec(seed, quick)
     return robustness_table(Path(out_dir), spec, None, seed=seed, quick=quick, workers=workers)

@@ -70,6 +70,12 @@ def mount_web(app: FastAPI) -> None:
     app.state.web_trends = TrendStore()
     _warm_at_start(app)
     app.include_router(router)
+    from .routes_diagnoses import router as diagnoses_router  # "Diagnose the last N operations"
+
+    app.include_router(diagnoses_router)
+    from .routes_alarms import router as alarm_router
+
+    app.include_router(alarm_router)
     app.mount("/static", StaticFiles(directory=HERE / "static"), name="static")
 
     @app.exception_handler(auth.WebAuthError)

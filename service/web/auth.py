@@ -31,6 +31,12 @@ PRE_MAX_AGE_S = 600
 WEB_ROLES = ("reader", "operator", "admin")  # roles that may sign in to the page
 
 
+def client_address(scope) -> str:
+    """The client's address (uvicorn has already applied X-Forwarded-For from trusted proxies)."""
+    client = scope.get("client")
+    return client[0] if client else "unknown"
+
+
 class WebAuthError(Exception):
     """Raised by the page dependencies; the app's handler turns it into a page or JSON answer.
 
@@ -150,6 +156,20 @@ def sign_in(request: Request, key: str) -> tuple[str, WebUser]:
 def sign_out(request: Request, user: WebUser) -> None:
     with request.app.state.Session() as session, session.begin():
         crud_web.end_web_session(session, token_hash=token_hash(user.token))
+
+
+def end_presented_session(request: Request) -> bool:
+    """End the session whose cookie this request carries, if it is a valid one (sign-in rotates
+    the session: an old cookie, perhaps seen by someone else, stops working). True if one ended."""
+    cookie = request.cookies.get(COOKIE)
+    if not cookie:
+        return False
+    try:
+        token = signer(request).unsign(cookie)
+    except WebAuthError:
+        return False
+    with request.app.state.Session() as session, session.begin():
+        return crud_web.end_web_session(session, token_hash=token_hash(token))
 
 
 def current_user(request: Request) -> WebUser:

@@ -68,7 +68,10 @@ def _pct_half_width(value, ci) -> str:
 def build_templates() -> Jinja2Templates:
     env = Environment(loader=FileSystemLoader(HERE / "templates"), autoescape=select_autoescape(default=True),
                       trim_blocks=True, lstrip_blocks=True)
-    env.filters.update(utc=_utc, iso=_iso, num=_num, fixed=_fixed, pct=_pct_half_width)
+    from service.errors import redact_paths
+
+    # nopath: server paths cut to file names in what the page shows (D11, docs/security.md)
+    env.filters.update(utc=_utc, iso=_iso, num=_num, fixed=_fixed, pct=_pct_half_width, nopath=redact_paths)
     return Jinja2Templates(env=env)
 
 

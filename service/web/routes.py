@@ -6,6 +6,7 @@ updates fetch sits under ``/ui/``. Both authenticate with the session cookie, ne
 
 from __future__ import annotations
 
+import asyncio
 import io
 import zipfile
 from datetime import timedelta
@@ -87,10 +88,26 @@ async def signin(request: Request, api_key: Annotated[str, Form(max_length=400)]
         return _signin_page(request, next=next, error="the sign-in form expired: try again", status=403)
     if not api_key.strip():
         return _signin_page(request, next=next, error="enter your API key", status=401)
+    from .auth import client_address
+
+    throttle, address = request.app.state.auth_throttle, client_address(request.scope)
+    wait = throttle.blocked_for(address)
+    if wait > 0:
+        resp = _signin_page(request, next=next, status=429,
+                            error=f"too many wrong keys from this address: try again in {wait:.0f} s")
+        resp.headers["Retry-After"] = str(max(1, round(wait)))
+        return resp
     try:
         cookie, _ = await run_in_threadpool(auth.sign_in, request, api_key)
     except WebAuthError as exc:
+        if exc.kind == "signin" and exc.message.startswith("unknown"):
+            delay = throttle.failed(address, "sign-ins")
+            if delay:
+                await asyncio.sleep(delay)
         return _signin_page(request, next=next, error=exc.message, status=401)
+    throttle.succeeded(address)
+    # a new session on every sign-in; the one this browser carried before ends now (D15)
+    await run_in_threadpool(auth.end_presented_session, request)
     resp = RedirectResponse(_safe_next(next), status_code=303)
     auth.set_cookie(resp, request, auth.COOKIE, cookie, max_age=int(request.app.state.web_signer.lifetime_s))
     resp.delete_cookie(auth.PRE_COOKIE, path="/signin")
@@ -154,7 +171,7 @@ def fleet(request: Request, user: Reader):
     settings = request.app.state.settings
     with _session(request) as session:
         rows = _fleet(session, settings)
-        resp = page(request, "fleet.html", {"rows": rows, "nav": "fleet"})
+    resp = page(request, "fleet.html", {"rows": rows, "nav": "fleet"})  # rendered with the connection back
     # engineers go from here to a breaker: have its trends ready (a long history takes a moment)
     resp.background = BackgroundTask(request.app.state.web_trends.warm, request.app.state.Session,
                                      [r["breaker"].id for r in rows], settings)
@@ -177,7 +194,10 @@ def breaker_page(request: Request, breaker_id: Id, user: Reader,
                "last": crud_web.last_operation_times(session, breaker_id=b.id),
                "watched": dict(settings.drift_settings.watched), "nav": "fleet",
                "OPENING": OPENING, "CLOSING": CLOSING, "CHARACTERISTICS": CHARACTERISTICS}
-        return page(request, "breaker.html", ctx)
+        from .routes_diagnoses import breaker_diagnosis_context
+
+        ctx.update(breaker_diagnosis_context(request, session, b))
+    return page(request, "breaker.html", ctx)  # rendered with the connection back
 
 
 @router.get("/ui/breakers/{breaker_id}/trends.json")
@@ -229,7 +249,7 @@ def operation_page(request: Request, operation_id: Id, user: Reader):
         ctx = {"op": op, "b": b, "fit": op.fit, "diag": diag, "names": names, "units": UNITS,
                "CHARACTERISTICS": CHARACTERISTICS, "nav": "fleet", "pruned": pruned,
                "analyser": analyser_table(analyser)}
-        return page(request, "operation.html", ctx)
+    return page(request, "operation.html", ctx)  # rendered with the connection back
 
 
 def analyser_table(analyser: dict | None) -> dict | None:
@@ -253,23 +273,26 @@ def analyser_table(analyser: dict | None) -> dict | None:
 
 @router.get("/ui/operations/{operation_id}/curves.json")
 def operation_curves_json(request: Request, operation_id: Id, user: Reader):
-    from service.acquisition.capture_file import read_capture
+    from service.acquisition.capture_file import read_stored_capture
 
     with _session(request) as session:
         op = crud.get_operation(session, operation_id=operation_id) or _not_found(f"operation {operation_id}")
         breaker = crud.breaker_model(crud.get_breaker(session, breaker_id=op.breaker_id))
         fit, path = op.fit, op.capture_path
-        try:
-            cap = read_capture(path, travel_channel=breaker.channels.get("travel", "travel"),
-                               vibration_channel=breaker.channels.get("vibration", "vibration"))
-        except CaptureError as exc:
+    # the file is read and the curves computed with the connection back in the pool
+    try:
+        cap = read_stored_capture(path, breaker)
+    except CaptureError as exc:
+        with _session(request) as session:
             cap = _pruned_preview(session, op.id)
-            if cap is None:
-                return security_headers(JSONResponse({"detail": f"the capture file is not readable: {exc}"},
-                                                     status_code=410))
-        body = operation_curves(cap, fit, breaker)
-        if getattr(cap, "note", None):
-            body["note"] = cap.note
+        if cap is None:
+            from service.errors import redact_paths
+
+            return security_headers(JSONResponse({"detail": f"the capture file is not readable: "
+                                                            f"{redact_paths(str(exc))}"}, status_code=410))
+    body = operation_curves(cap, fit, breaker)
+    if getattr(cap, "note", None):
+        body["note"] = cap.note
     body.update(operation_id=operation_id, kind=op.kind, fit_status=fit.status if fit else None)
     return security_headers(JSONResponse(body))
 
@@ -335,7 +358,7 @@ def download_capture(request: Request, operation_id: Id, user: Reader):
 def alarms_page(request: Request, user: Reader, state: Annotated[str, Query(pattern="^(active|all)$")] = "active"):
     with _session(request) as session:
         rows = crud_web.alarms_with_breakers(session, state=state)
-        return page(request, "alarms.html", {"rows": rows, "state": state, "nav": "alarms"})
+    return page(request, "alarms.html", {"rows": rows, "state": state, "nav": "alarms"})
 
 
 @router.post("/alarms/{alarm_id}/ack")
@@ -359,43 +382,46 @@ def acknowledge(request: Request, alarm_id: Id, user: OperatorPost,
 @router.get("/upload")
 def upload_form(request: Request, user: Annotated[WebUser, Depends(auth.require_page("operator"))]):
     with _session(request) as session:
-        return page(request, "upload.html", {"breakers": crud.list_breakers(session), "nav": "upload"})
+        breakers = crud.list_breakers(session)
+    return page(request, "upload.html", {"breakers": breakers, "nav": "upload"})
 
 
 @router.post("/upload")
 async def upload(request: Request, user: OperatorPost,
                  breaker_id: Annotated[int, Form(ge=1, le=MAX_ID)],
                  files: Annotated[list[UploadFile], File()],
-                 operation: Annotated[str, Form(pattern="^(auto|open|close)$")] = "auto"):
-    from service.api.routes import _read_capped, capture_from_upload
+                 operation: Annotated[str, Form(pattern="^(auto|open|close)$")] = "auto",
+                 temperature_c: Annotated[str, Form(max_length=20)] = ""):
+    from service.jobs.upload import UploadRefused, ingest_upload, parse_upload
+    from service.web.routes_alarms import form_temperature
 
     settings = request.app.state.settings
-    cap_bytes = settings.max_upload_bytes
 
     def form_error(message: str, status: int):
         with _session(request) as session:
-            return page(request, "upload.html", {"breakers": crud.list_breakers(session), "nav": "upload",
-                                                 "error": message, "chosen": breaker_id}, status_code=status)
+            breakers = crud.list_breakers(session)
+        return page(request, "upload.html", {"breakers": breakers, "nav": "upload", "error": message,
+                                             "chosen": breaker_id}, status_code=status)
+
+    def breaker_row():
+        with _session(request) as session:
+            return crud.get_breaker(session, breaker_id=breaker_id)
 
     try:
-        with _session(request) as session:
-            row = crud.get_breaker(session, breaker_id=breaker_id)
-            if row is None:
-                return form_error(f"there is no breaker {breaker_id}", 422)
-            blobs, budget = {}, cap_bytes
-            for f in files:
-                data = await _read_capped(f, budget)
-                budget -= len(data)
-                blobs[(f.filename or "").lower()] = data
-            capture, kind = await run_in_threadpool(capture_from_upload, blobs, row,
-                                                    None if operation == "auto" else operation, cap_bytes)
-    except HTTPException as exc:
-        return form_error(str(exc.detail), exc.status_code)
-    result = await run_in_threadpool(request.app.state.monitor.ingest, capture, breaker_id=breaker_id,
-                                     operation=kind, source="upload")
+        row = await run_in_threadpool(breaker_row)
+        if row is None:
+            return await run_in_threadpool(form_error, f"there is no breaker {breaker_id}", 422)
+        temp = form_temperature(temperature_c)
+        upload = await parse_upload(request.app.state, files, row, None if operation == "auto" else operation)
+    except (UploadRefused, HTTPException) as exc:
+        return await run_in_threadpool(form_error, str(exc.detail), exc.status_code)
+    if temp is not None:
+        upload.capture.meta["temperature_c"], upload.capture.meta["temperature_source"] = temp, "upload"
+    result = await run_in_threadpool(ingest_upload, request.app.state.monitor, settings, upload,
+                                     breaker_id=breaker_id, source="upload", capture_key=None)
     if result.operation_id is None:
-        return form_error("the database is unavailable: the capture is kept in the spool and will be "
-                          "stored and fitted when it answers again", 202)
+        return await run_in_threadpool(form_error, "the database is unavailable: the capture is kept in the spool "
+                                       "and will be stored and fitted when it answers again", 202)
     return security_headers(RedirectResponse(f"/operations/{result.operation_id}", status_code=303))
 
 

@@ -16,6 +16,7 @@ from threading import Lock
 import numpy as np
 
 from service.alarms import drift
+from service.decimation import minmax_buckets, minmax_indices  # noqa: F401 (the charts' decimation)
 from service.mechanics.coordinates import operation_coordinate
 from service.storage.fit_curve import fit_curve
 
@@ -36,41 +37,6 @@ def finite_or_none(v, digits: int | None = None):
     if not math.isfinite(v):
         return None
     return round(v, digits) if digits is not None else v
-
-
-def minmax_buckets(t: np.ndarray, y: np.ndarray, buckets: int) -> tuple[list, list, list]:
-    """Min/max decimation: ``buckets`` equal slices of the samples, each shown as its (t, min, max).
-
-    t [s], y [any unit]; returns three lists (bucket start time, minimum, maximum). With fewer
-    samples than buckets every sample is its own bucket (min = max)."""
-    t, y = np.asarray(t, float), np.asarray(y, float)
-    n = y.size
-    if n == 0:
-        return [], [], []
-    buckets = max(1, min(int(buckets), n))
-    edges = np.linspace(0, n, buckets + 1).astype(int)
-    lo = np.minimum.reduceat(y, edges[:-1])
-    hi = np.maximum.reduceat(y, edges[:-1])
-    return t[edges[:-1]].tolist(), lo.tolist(), hi.tolist()
-
-
-def minmax_indices(y, buckets: int) -> np.ndarray:
-    """Indices to plot ``y`` with at most ~2 points per bucket: each bucket's minimum and maximum,
-    in order, plus the last sample. NaN/None are skipped. All indices when ``y`` is short."""
-    y = np.asarray([np.nan if v is None else v for v in y], dtype=float)
-    n = y.size
-    if n <= 2 * buckets:
-        return np.arange(n)
-    edges = np.linspace(0, n, buckets + 1).astype(int)
-    keep = []
-    for a, b in zip(edges[:-1], edges[1:]):
-        seg = y[a:b]
-        if seg.size == 0 or np.all(np.isnan(seg)):
-            continue
-        i, j = a + int(np.nanargmin(seg)), a + int(np.nanargmax(seg))
-        keep.extend((i, j) if i <= j else (j, i))
-    keep.append(n - 1)
-    return np.unique(np.asarray(keep, dtype=int))
 
 
 def sparkline(values: list[float], width: float = 120, height: float = 28, pad: float = 2) -> str:

@@ -66,10 +66,18 @@ def make_celery(broker_url: str, *, queue: str = "hvcb", key_prefix: str = "",
     @app.task(name="hvcb.refit_batch", acks_late=True, reject_on_worker_lost=True, **TRANSIENT_RETRY)
     def refit_batch_task(run_id: int, operation_ids: list):
         # A batch of one breaker's stored operations (``hvcb refit``); idempotent like the fit.
-        from service.refit.batch import refit_batch
+        from service.jobs.refit import refit_batch
 
         return refit_batch(int(run_id), [int(i) for i in operation_ids],
                            fixed if fixed is not None else worker_options())
+
+    @app.task(name="hvcb.breaker_diagnosis", acks_late=True, reject_on_worker_lost=True, **TRANSIENT_RETRY)
+    def breaker_diagnosis_task(diagnosis_id: int):
+        # A breaker-level gap diagnosis (issue 20); idempotent: a finished row is left alone.
+        from service.jobs.breaker_diagnosis import run_breaker_diagnosis_job
+
+        url = fixed["database_url"] if fixed is not None else worker_options()["database_url"]
+        return run_breaker_diagnosis_job(int(diagnosis_id), url)
 
     return app
 

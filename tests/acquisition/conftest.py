@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from service.acquisition.stream_script import acceptance_script
+from drivers.stream_script import acceptance_script
 from service.acquisition.trigger import TriggerDetector, TriggerSettings
 from service.breaker_file import load_breaker
 

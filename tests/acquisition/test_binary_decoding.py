@@ -9,7 +9,7 @@ import pytest
 from drivers.comtrade import record
 from drivers.emulators.sources import NOMINAL
 from service.acquisition.comtrade_writer import write_comtrade
-from service.acquisition.synthetic import synthesize_capture
+from drivers.synthetic import synthesize_capture
 from tests.acquisition.test_field_comtrade import FOLDERS, _capture_file, _folder
 from tests.conftest import shared_dir
 

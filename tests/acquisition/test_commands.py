@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from service import cli
-from service.acquisition.stream_script import ScriptedOperation, ScriptedStream
+from drivers.stream_script import ScriptedOperation, ScriptedStream
 
 from .conftest import BREAKER_FILE
 

@@ -12,7 +12,7 @@ import pytest
 from drivers.capture import Capture
 from service.acquisition.capture_file import read_capture
 from service.acquisition.comtrade_writer import FORMATS, write_comtrade
-from service.acquisition.synthetic import synthesize_capture
+from drivers.synthetic import synthesize_capture
 
 
 @pytest.fixture(scope="module")

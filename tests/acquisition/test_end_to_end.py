@@ -24,7 +24,7 @@ from drivers.serial_frame import DEFAULT_FRAME_SAMPLES
 from drivers.serial_stream import GAP_FLAG, SerialSettings, SerialStreamDriver
 from service.acquisition.capture_file import read_capture
 from service.acquisition.pipeline import capture_stream
-from service.acquisition.stream_script import LoneShock, ScriptedOperation, ScriptedStream
+from drivers.stream_script import LoneShock, ScriptedOperation, ScriptedStream
 from service.acquisition.trigger import TriggerDetector
 
 FS = 128_000.0

@@ -10,7 +10,7 @@ import pytest
 from drivers.interface import SampleBlock
 from service.acquisition.capture_file import read_capture
 from service.acquisition.pipeline import CaptureStats, capture_stream
-from service.acquisition.stream_script import Gap, ScriptedOperation, ScriptedStream
+from drivers.stream_script import Gap, ScriptedOperation, ScriptedStream
 from service.acquisition.trigger import TriggerDetector
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from service.acquisition.stream_script import (Gap, ScriptedOperation, ScriptedStream,
+from drivers.stream_script import (Gap, ScriptedOperation, ScriptedStream,
                                                TRAVEL_FULL_SCALE_RAD)
 
 

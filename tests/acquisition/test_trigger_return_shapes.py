@@ -13,7 +13,7 @@ import pytest
 from drivers import commands
 from drivers.emulators.sources import emulator_source
 from service.acquisition.operation_end import moving_average
-from service.acquisition.stream_script import (LoneShock, ScriptedOperation, ScriptedStream,
+from drivers.stream_script import (LoneShock, ScriptedOperation, ScriptedStream,
                                                acceptance_script)
 from service.acquisition.trigger import NEXT_OPERATION, TriggerDetector
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from drivers.interface import SampleBlock
-from service.acquisition.stream_script import Gap, LoneShock, NoiseBurst, ScriptedOperation, ScriptedStream
+from drivers.stream_script import Gap, LoneShock, NoiseBurst, ScriptedOperation, ScriptedStream
 from service.acquisition.trigger import (INCOMPLETE, NEXT_OPERATION, TriggerDetector,
                                          TriggerSettings)
 

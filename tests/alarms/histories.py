@@ -49,3 +49,29 @@ def first_alarm(events, level: str = "alarm") -> int | None:
         if e.kind in ("raised", "escalated") and e.level == level:
             return e.operation_id
     return None
+
+
+def seasonal_temperature(n_ops: int, *, day0: float = 0.0, seed: int = 0) -> np.ndarray:
+    """Ambient temperature of operations 1..n_ops, one a day [C]: -25..+40 C over a year
+    (coldest about 20 January), a daily swing of +-6 K and 2 K of weather (bench/alarm_rates.py)."""
+    rng = np.random.default_rng(seed + 12345)
+    day = day0 + np.arange(1, n_ops + 1)
+    hour = rng.uniform(0, 24, n_ops)
+    season = 7.5 - 32.5 * np.cos(2 * np.pi * (day - 20) / 365.25)
+    return np.clip(season + 6.0 * np.sin(2 * np.pi * (hour - 9) / 24) + rng.normal(0, 2.0, n_ops), -25, 40)
+
+
+def seasonal_history(seed: int, *, nominal: float, rel_per_k: float, n_ops: int = 500,
+                     give_temperature: bool = True, slope: float = 0.0,
+                     drift_from: int = 10**9) -> list[FitObservation]:
+    """``fit_history`` with a temperature dependence x ~ (1 + rel_per_k (T - 20 C)); the
+    temperature goes to the detector only when ``give_temperature``."""
+    temps = seasonal_temperature(n_ops, day0=(seed * 37) % 365, seed=seed)
+    base = fit_history(seed, nominal=nominal, n_ops=n_ops, slope=slope, drift_from=drift_from)
+    out = []
+    for o, t in zip(base, temps):
+        f = 1.0 + rel_per_k * (t - 20.0)
+        out.append(FitObservation(operation_id=o.operation_id, time=o.time, value=o.value * f,
+                                  ci95=(o.ci95[0] * f, o.ci95[1] * f),
+                                  temperature=float(t) if give_temperature else None))
+    return out

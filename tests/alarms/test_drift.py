@@ -11,7 +11,7 @@ from scipy import special
 
 from histories import BO_NOMINAL, DO_NOMINAL, T0, first_alarm, fit_history
 from service.alarms import (DriftSettings, DriftState, FitObservation, acknowledge, health_status,
-                            observations_from_fit, replay, reset_baseline, update)
+                            observations_from_fit, replay, reset_baseline, t_for_score, update)
 from service.alarms.design import cusum_arl
 
 SETTINGS = DriftSettings()
@@ -33,10 +33,10 @@ def flat_baseline(parameter="DO", mean=DO_NOMINAL, sd=0.4) -> DriftState:
 
 
 def value_for_score(state: DriftState, score: float) -> float:
-    """The fit value whose CUSUM input (normal score, se = 0) is ``score``."""
-    b = state.baseline
-    z = -special.stdtrit(b.n - 1, special.ndtr(-score))  # inverse of normal_score
-    return b.mean + z * b.sd * math.sqrt(1 + 1 / b.n)
+    """The fit value whose CUSUM input (normal score, se = 0) is ``score`` against the state's
+    current baseline model (which keeps learning while the CUSUM is quiet)."""
+    mean, var = state.model.predict(None, 0.0)
+    return mean + t_for_score(score, state.model.dof) * math.sqrt(var)
 
 
 def feed(state, scores, start_op):
@@ -60,12 +60,28 @@ def test_an_isolated_extreme_fit_is_held_then_ignored():
 
 
 def test_a_confirmed_step_counts_both_fits_capped_at_z_cap_minus_k():
+    """Two capped fits stay below the warning threshold (so two gross fit errors in a row, 1 in
+    10 000 fits at 1 % outliers, raise nothing); a third consistent one raises the alarm."""
     state = flat_baseline()
+    assert 2 * (SETTINGS.z_cap - SETTINGS.k) < SETTINGS.h_warning
+    assert 3 * (SETTINGS.z_cap - SETTINGS.k) >= SETTINGS.h_alarm
     state, _ = update(state, obs(21, DO_NOMINAL * 0.70), SETTINGS)
     state, events = update(state, obs(22, DO_NOMINAL * 0.70), SETTINGS)
-    assert state.s_falling == pytest.approx(2 * (SETTINGS.z_cap - SETTINGS.k))
-    assert [(e.kind, e.level) for e in events] == [("raised", "warning")]
-    assert events[0].evidence["operation_ids"] == [21, 22]
+    assert state.s_falling == pytest.approx(2 * (SETTINGS.z_cap - SETTINGS.k)) and events == []
+    state, events = update(state, obs(23, DO_NOMINAL * 0.70), SETTINGS)
+    assert [(e.kind, e.level) for e in events] == [("raised", "alarm")]
+    assert events[0].evidence["operation_ids"] == [21, 22, 23]
+
+
+def test_an_outlier_next_to_a_leaning_fit_is_still_held():
+    """A gross error jumps away from its neighbours' scores; a drift moves them together."""
+    state = flat_baseline()
+    state, _, _ = feed(state, [-2.5], 21)
+    state, events = update(state, obs(22, DO_NOMINAL * 0.70), SETTINGS)
+    assert state.held is not None and state.held[0] == 22 and events == []
+    state, _, _ = feed(state, [-2.0], 23)
+    assert state.held is None and state.outliers_ignored == 1
+    assert state.s_falling == pytest.approx((2.5 - SETTINGS.k) + (2.0 - SETTINGS.k))
 
 
 @pytest.mark.parametrize("parameter, nominal, rel", [
@@ -99,9 +115,8 @@ def test_an_outlier_in_the_baseline_is_screened_out():
 def test_hysteresis_one_warning_while_the_statistic_hovers_around_the_threshold():
     state = flat_baseline()
     k, hw = SETTINGS.k, SETTINGS.h_warning
-    climb = [-(k + 1.0)] * 3  # S = 3.0 = h_warning
-    hover = [-(k + 0.6), -(k - 0.6)] * 15  # S alternates h_warning + 0.6, h_warning
-    hover = [-(k - 0.6), -(k + 0.6)] * 15  # S alternates 2.4, 3.0: below, at, below, ...
+    climb = [-(k + hw / 3 + 1e-6)] * 3  # S = h_warning
+    hover = [-(k - 0.6), -(k + 0.6)] * 15  # S alternates h_warning - 0.6, h_warning, ...
     state, events, trace = feed(state, climb + hover, 21)
     crossings = sum(1 for a, b in zip(trace, trace[1:]) if (a >= hw) != (b >= hw))
     assert crossings >= 20  # the series really does hover around the threshold
@@ -111,14 +126,14 @@ def test_hysteresis_one_warning_while_the_statistic_hovers_around_the_threshold(
 
 def test_lifecycle_raised_escalated_acknowledged_cleared():
     state = flat_baseline()
-    state, events, _ = feed(state, [-(SETTINGS.k + 1.0)] * 3, 21)  # S = 3: warning
+    state, events, _ = feed(state, [-(SETTINGS.k + SETTINGS.h_warning / 3 + 1e-6)] * 3, 21)  # S = h_warning
     assert [(e.kind, e.level) for e in events] == [("raised", "warning")]
     episode = events[0].episode
     state, acks = acknowledge(state, by="operator-1", time=T0 + timedelta(days=2))
     assert [a.kind for a in acks] == ["acknowledged"] and state.acknowledged
     assert acknowledge(state, by="operator-1", time=T0 + timedelta(days=2))[1] == []  # idempotent
 
-    state, events, _ = feed(state, [-(SETTINGS.k + 1.0)] * 2, 24)  # S = 5: alarm
+    state, events, _ = feed(state, [-(SETTINGS.k + 1.0)] * 2, 24)  # S = h_warning + 2 > h_alarm
     assert [(e.kind, e.level) for e in events] == [("escalated", "alarm")]
     assert not state.acknowledged  # an escalation needs a fresh acknowledgement
     state, acks = acknowledge(state, by="operator-2", time=T0 + timedelta(days=3))
@@ -140,15 +155,17 @@ def test_alarm_evidence_names_baseline_estimate_statistic_and_operations():
     _, events = replay(history, SETTINGS, parameter="DO")
     alarm = next(e for e in events if e.level == "alarm")
     ev = json.loads(json.dumps(alarm.to_dict(), allow_nan=False))["evidence"]
-    assert ev["baseline"]["n"] >= 19 and len(ev["baseline"]["operation_ids"]) == 20
-    assert ev["baseline"]["operation_ids"] == list(range(1, 21))
+    base = ev["baseline"]["operation_ids"]
+    assert ev["baseline"]["n"] == len(base) >= 19
+    assert set(range(1, 21)) - set(ev["baseline"]["excluded_operation_ids"]) <= set(base)
+    assert not ev["temperature_compensated"]
     assert ev["current"]["operation_id"] == alarm.operation_id
     lo, hi = ev["current"]["ci95"]
     assert lo < ev["current"]["value"] < hi < ev["baseline"]["mean"]
     assert ev["statistic"] >= SETTINGS.h_alarm and ev["drift_direction"] == "falling"
     ids = ev["operation_ids"]
     assert ids[-1] == alarm.operation_id and ids == list(range(ids[0], alarm.operation_id + 1))
-    assert ids[0] > 20
+    assert ids[0] > 20 and max(base) <= ids[0]  # at most the excursion's first fit was learnt
 
 
 # --- baseline reset ---------------------------------------------------------------------------
@@ -169,7 +186,8 @@ def test_baseline_reset_after_maintenance_clears_and_learns_the_new_level():
     state, events = replay(after, SETTINGS, parameter="DO", state=state)
     assert events == []
     assert state.baseline.mean == pytest.approx(DO_NOMINAL * 0.92, rel=0.01)
-    assert state.baseline.operation_ids == tuple(range(101, 121))
+    assert state.baseline.operation_ids[:20] == tuple(range(101, 121))
+    assert state.baseline.n > 20  # and it kept learning while quiet
     assert state.episode == 1  # the next alarm gets a new episode number
 
 
@@ -228,12 +246,16 @@ def test_unknown_parameter_is_refused():
 
 
 @pytest.mark.parametrize("section, message", [
-    ({"h_warning": 6.0, "h_alarm": 5.0}, "clear_level < h_warning <= h_alarm"),
+    ({"clear_level": 5.0}, "clear_level < h_warning <= h_alarm"),
+    ({"design_false_alarms_per_10k": 1.0}, "must not exceed design_false_warnings_per_10k"),
     ({"z_cap": 1.0}, "must exceed k"),
-    ({"k": float("nan")}, "finite number"),
-    ({"baseline_n": 2}, "integer >= 3"),
-    ({"watched": {"DO": "down"}}, "must be one of"),
-    ({"h_alarn": 5.0}, "unknown alarm settings: h_alarn"),
+    ({"k": float("nan")}, "k: Input should be a finite number"),
+    ({"baseline_n": 2}, "baseline_n: Input should be greater than or equal to 3"),
+    ({"baseline_max": 10}, r"baseline_max \(10\) must be at least baseline_n"),
+    ({"watched": {"DO": "down"}}, "watched.DO must be one of falling, rising, both, got 'down'"),
+    ({"h_alarn": 5.0}, "unknown alarm setting h_alarn"),
+    ({"h_warning": 3.0}, "unknown alarm setting h_warning"),  # derived, not set
+    ({"temperature_slopes": {"DO": [0.0, -0.01]}}, "lowest <= highest"),
 ])
 def test_bad_settings_are_refused(section, message):
     with pytest.raises(ValueError, match=message):

@@ -10,7 +10,7 @@ from drivers.emulators.sources import NOMINAL
 from drivers.interface import Driver, SampleBlock
 from drivers.modbus import CAPTURE_FLAG, ModbusCaptureDriver, ModbusSettings
 from drivers.scaling import ChannelScaling
-from service.acquisition.synthetic import synthesize_capture
+from drivers.synthetic import synthesize_capture
 
 SCALING = ChannelScaling()
 

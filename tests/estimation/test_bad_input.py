@@ -8,7 +8,7 @@ import pytest
 
 from drivers.capture import Capture, CaptureError
 from service.acquisition.capture_file import parse_csv, read_capture
-from service.acquisition.synthetic import synthesize_capture
+from drivers.synthetic import synthesize_capture
 from service.breaker_file import BreakerFileError, load_breaker
 from service.estimation import FitError, fit_capture
 

@@ -4,7 +4,7 @@ import sys
 
 import numpy as np
 
-from service.acquisition.synthetic import synthesize_capture
+from drivers.synthetic import synthesize_capture
 
 
 def test_fit_json_on_csv_without_vibration(tmp_path, breaker):

@@ -75,7 +75,7 @@ def test_fitted_curve_follows_the_measurement(fits, samples_dir, breaker):
 def test_over_damped_opening_that_creeps_to_rest_is_fitted(breaker):
     """A heavily damped buffer gives no overtravel: the window ends where the travel arrives at rest."""
     from drivers.capture import Capture
-    from service.acquisition.synthetic import vibration_signature
+    from drivers.synthetic import vibration_signature
     from service.mechanics.opening import opening_angle
 
     p = dict(breaker.design_parameters(), DO=160.0)  # (CO + DO)² > 4·(AO + EO): over-damped
@@ -103,7 +103,7 @@ def test_onset_delay_on_its_bound_is_reported(breaker):
 
 
 def synthesize_capture_no_lead(breaker):
-    from service.acquisition.synthetic import synthesize_capture
+    from drivers.synthetic import synthesize_capture
 
     # The shock comes 0.3 ms AFTER motion starts: the best τ would be negative.
     return synthesize_capture(breaker, "open", breaker.design_parameters(),

@@ -15,7 +15,7 @@ import pytest
 
 from drivers.capture import Capture
 from service.acquisition.comtrade_writer import write_comtrade
-from service.acquisition.synthetic import operation_travel
+from drivers.synthetic import operation_travel
 from service.cli import main as hvcb
 from service.mechanics.coordinates import operation_coordinate
 from service.studies.synthetic_sets import draw_parameter_sets, operation_params

@@ -11,7 +11,7 @@ from service.alarms.settings import DriftSettings
 from service.iec61850 import points as pm
 
 NOW = datetime(2026, 11, 23, 9, 0, tzinfo=timezone.utc)
-README = Path(__file__).resolve().parents[2] / "README.md"
+POINT_MAP_PAGE = Path(__file__).resolve().parents[2] / "docs" / "iec61850.md"
 
 
 def ld():
@@ -91,5 +91,5 @@ def test_operating_time_drift_uses_the_project_detector():
     assert pm.operating_time_level(slowing, settings) == "alarm"
 
 
-def test_readme_lists_the_point_map():
-    assert pm.markdown_table(ld()) in README.read_text()
+def test_docs_list_the_point_map():
+    assert pm.markdown_table(ld()) in POINT_MAP_PAGE.read_text()

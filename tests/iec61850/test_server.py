@@ -19,16 +19,11 @@ from pyiec61850.mms.utils import mms_value_to_python  # noqa: E402
 
 from service.iec61850 import points as pm  # noqa: E402
 from service.storage import crud  # noqa: E402
+from tests.live_server import free_port  # noqa: E402
 from tests.service.conftest import db_url, make_settings, no_leaked_threads, pg_server  # noqa: E402,F401
 
 ALARMS = {"baseline_n": 10, "watched": {"DO": "falling", "BO": "both"}}
 RCB_REF = f"hvcbQ1/LLN0.RP.{pm.RCB}"
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 class Reports(L.RCBHandler):

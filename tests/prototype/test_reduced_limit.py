@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from service.acquisition.synthetic import synthesize_capture
+from drivers.synthetic import synthesize_capture
 from service.mechanics.closing import simulate_closing
 from service.mechanics.opening import simulate_opening
 from service.prototypes.a import (EFFECT_NAMES, OPERATIONS, REALISTIC, Effects,

@@ -19,7 +19,7 @@ START = datetime(2026, 1, 1, tzinfo=timezone.utc)
 
 def distinct_captures(breaker, per_kind: int = 3):
     """Synthetic openings and closings with parameters a few per cent apart and their own noise."""
-    from service.acquisition.synthetic import synthesize_capture
+    from drivers.synthetic import synthesize_capture
 
     out = []
     for kind in ("open", "close"):

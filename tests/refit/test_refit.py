@@ -83,7 +83,7 @@ def test_a_second_run_makes_version_three_and_the_same_command_resumes(fleet, db
     assert [len(b) for b in batches] == [5, 5, 2]
 
     def interrupted(run_id, all_batches, report):
-        from service.refit.batch import refit_batch
+        from service.jobs.refit import refit_batch
 
         report(refit_batch(run_id, batches[0], opts)["done"])
         raise KeyboardInterrupt
@@ -100,7 +100,7 @@ def test_a_second_run_makes_version_three_and_the_same_command_resumes(fleet, db
 
 
 def test_a_batch_landed_twice_counts_once(fleet, db_url):
-    from service.refit.batch import refit_batch
+    from service.jobs.refit import refit_batch
 
     Session, ids = fleet
     with Session() as s, s.begin():

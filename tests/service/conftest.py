@@ -4,10 +4,8 @@ HVCB_TEST_POSTGRES_URL is set and answers), migrated by Alembic, and an app buil
 from __future__ import annotations
 
 import os
-import socket
 import threading
 import time
-import uuid
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +14,7 @@ import pytest
 from service.settings import load_settings
 from service.storage import crud
 from service.storage.db import make_engine, upgrade
+from service.storage.scratch import scratch_pg_database, unreachable
 
 PG_URL = os.environ.get("HVCB_TEST_POSTGRES_URL")
 REDIS_URL = os.environ.get("HVCB_TEST_REDIS_URL")
@@ -23,14 +22,7 @@ BREAKER_FILE = Path(__file__).resolve().parents[2] / "config" / "breakers" / "re
 
 
 def _reachable(url: str, default_port: int) -> str | None:
-    from sqlalchemy.engine import make_url
-
-    u = make_url(url)
-    try:
-        with socket.create_connection((u.host or "127.0.0.1", u.port or default_port), timeout=1):
-            return None
-    except OSError as exc:
-        return f"{u.host}:{u.port or default_port} does not answer ({exc})"
+    return unreachable(url, default_port)
 
 
 @pytest.fixture(scope="session")
@@ -42,18 +34,8 @@ def pg_server():
     why = _reachable(PG_URL, 5432)
     if why:
         pytest.skip(f"PostgreSQL lane off: {why}")
-    from sqlalchemy import text
-    from sqlalchemy.engine import make_url
-
-    admin = make_engine(PG_URL)
-    name = f"hvcb_test_{os.getpid()}_{uuid.uuid4().hex[:6]}"
-    with admin.connect().execution_options(isolation_level="AUTOCOMMIT") as conn:
-        conn.execute(text(f'CREATE DATABASE "{name}"'))
-    url = make_url(PG_URL).set(database=name).render_as_string(hide_password=False)
-    yield url
-    with admin.connect().execution_options(isolation_level="AUTOCOMMIT") as conn:
-        conn.execute(text(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)'))
-    admin.dispose()
+    with scratch_pg_database(PG_URL, "hvcb_test") as url:
+        yield url
 
 
 def _fresh_pg_schema(url: str) -> None:
@@ -81,6 +63,9 @@ def db_url(request, tmp_path):
 
 def make_settings(tmp_path, db_url, **kw):
     kw.setdefault("executor", "inline")
+    # the route matrices send many wrong keys from one test client; throttling (D7) has its own
+    # tests in tests/security/test_d07_throttle.py
+    kw.setdefault("server", {"auth_free_failures": 100_000})
     return load_settings(data_dir=tmp_path / "data", database_url=db_url, broker_url="",
                          bootstrap_admin_key=None, **kw)
 
@@ -140,7 +125,7 @@ def breaker():
 
 
 def synth(breaker, kind="open", seed=0, scale=None, start_time=None):
-    from service.acquisition.synthetic import synthesize_capture
+    from drivers.synthetic import synthesize_capture
 
     p = dict(breaker.design_parameters())
     for k, v in (scale or {}).items():

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import asyncio
 import shutil
-import socket
 import threading
 import time
 from pathlib import Path
@@ -14,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from conftest import BREAKER_FILE
+from tests.live_server import LiveServer, free_port  # noqa: F401 (free_port: the tests' import)
 
 
 def no_fit(capture, breaker, operation, *, dc=None, seed=1):
@@ -36,12 +36,6 @@ def breaker_files(directory: Path, names: list[str]) -> list[Path]:
     return out
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 def poll(fn, timeout: float, what: str, every: float = 0.1):
     """fn() until it returns something truthy; AssertionError naming ``what`` after ``timeout``."""
     deadline = time.monotonic() + timeout
@@ -56,7 +50,7 @@ def poll(fn, timeout: float, what: str, every: float = 0.1):
 def capture_block(breaker, kind: str, seed: int, first_index: int):
     """One synthetic operation as a DAQ-triggered capture block (distinct noise per seed)."""
     from drivers.interface import SampleBlock
-    from service.acquisition.synthetic import synthesize_capture
+    from drivers.synthetic import synthesize_capture
 
     cap, _ = synthesize_capture(breaker, kind, breaker.design_parameters(), rng=np.random.default_rng(seed))
     return SampleBlock(first_index, cap.travel, cap.vibration, cap.sample_rate)
@@ -102,28 +96,20 @@ class Central:
         self.settings = settings
         self.port = settings.port
         self.url = f"http://127.0.0.1:{self.port}"
-        self.server = self.thread = None
+        self.live: LiveServer | None = None
         self.admin_key: str | None = None
 
     def start(self) -> None:
-        import uvicorn
-
         from service.api.app import create_app
 
         shown = []
         app = create_app(self.settings, on_key=shown.append)
-        self.server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=self.port, log_level="error",
-                                                    lifespan="on"))
-        self.thread = threading.Thread(target=self.server.run, name="test-central", daemon=True)
-        self.thread.start()
-        poll(lambda: self.server.started or not self.thread.is_alive(), 60, "the central server to start")
-        assert self.server.started, "the central server did not start"
+        self.live = LiveServer(app, port=self.port, name="test-central").start()
         if shown:
             self.admin_key = shown[0]
         self.app = app
 
     def stop(self) -> None:
-        if self.server is not None:
-            self.server.should_exit = True
-            self.thread.join(timeout=30)
-            self.server = self.thread = None
+        if self.live is not None:
+            self.live.stop()
+            self.live = None

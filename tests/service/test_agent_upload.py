@@ -9,7 +9,7 @@ from sqlalchemy import func, select
 
 from comtrade_bytes import comtrade_pair
 from conftest import synth
-from service.api.routes import content_hash
+from service.jobs.upload import content_hash
 from service.storage import crud
 from service.storage.models import OperationRow
 

@@ -61,6 +61,8 @@ def test_every_endpoint_needs_a_key_and_the_right_role(env):
 
 def test_healthz_is_open_and_reports_database(env):
     r = env.client.get("/healthz")
+    assert r.status_code == 200 and r.json() == {"status": "ok"}  # details need a key (D14)
+    r = env.client.get("/healthz", headers=env.h("reader"))
     assert r.status_code == 200 and r.json()["database"] == "ok"
 
 

@@ -9,6 +9,7 @@ are deleted at the end.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import subprocess
@@ -27,6 +28,7 @@ from service.settings import load_settings
 from service.storage import crud
 from service.storage.db import make_engine, session_factory, upgrade
 from service.storage.models import AlarmRow, DriftStateRow, FitRow, OperationRow, ParameterValueRow
+from service.storage.scratch import scratch_pg_database
 from service.workers import make_executor
 
 pytestmark = pytest.mark.redis
@@ -120,16 +122,9 @@ def celery_lane(tmp_path_factory):
     data_dir = base / "data"
     data_dir.mkdir()
     tag = uuid.uuid4().hex[:10]
-    pg_admin, pg_name = None, None
+    scratch = contextlib.ExitStack()
     if PG_URL and _reachable(PG_URL, 5432) is None:
-        from sqlalchemy import text
-        from sqlalchemy.engine import make_url
-
-        pg_admin = make_engine(PG_URL)
-        pg_name = f"hvcb_celery_{os.getpid()}_{tag}"
-        with pg_admin.connect().execution_options(isolation_level="AUTOCOMMIT") as conn:
-            conn.execute(text(f'CREATE DATABASE "{pg_name}"'))
-        url = make_url(PG_URL).set(database=pg_name).render_as_string(hide_password=False)
+        url = scratch.enter_context(scratch_pg_database(PG_URL, "hvcb_celery"))
     else:
         url = f"sqlite:///{data_dir / 'hvcb.sqlite3'}"
     upgrade(url)
@@ -157,12 +152,7 @@ def celery_lane(tmp_path_factory):
         if keys:
             client.delete(*keys)
         client.close()
-        if pg_admin is not None:
-            from sqlalchemy import text
-
-            with pg_admin.connect().execution_options(isolation_level="AUTOCOMMIT") as conn:
-                conn.execute(text(f'DROP DATABASE IF EXISTS "{pg_name}" WITH (FORCE)'))
-            pg_admin.dispose()
+        scratch.close()  # drops the PostgreSQL database, if one was made
 
 
 @pytest.fixture
@@ -282,3 +272,43 @@ def test_celery_service_crash_then_restart_fits_every_capture_once(lane, breaker
         n_values = s.scalar(select(func.count()).select_from(ParameterValueRow).where(ParameterValueRow.name == "DO"))
     assert n_ops == n and len(fits) == n and n_values == n
     assert all(f.status == "done" and f.results_stored == 1 for f in fits)
+
+
+def test_celery_breaker_diagnosis_runs_in_a_worker(lane, breaker):
+    """A breaker-level diagnosis (issue 20) is the task hvcb.breaker_diagnosis: the worker runs
+    the real diagnosis on two stored openings and stores its answer; a second delivery of the
+    same task leaves the stored answer alone."""
+    from service.storage import crud_diagnoses
+    from service.storage.models import BreakerDiagnosisRow
+    from service.workers.breaker_diagnoses import BreakerDiagnosisRunner
+
+    monitor = lane.monitor()
+    ops = [monitor.ingest(synth(breaker, "open", seed=60 + i), breaker_id=1, operation="open").operation_id
+           for i in range(2)]
+    with lane.Session() as s:
+        key = crud_diagnoses.selection_key(breaker_id=1, kind="open", operation_ids=ops)
+        row, created = crud_diagnoses.insert(s, breaker_id=1, kind="open", last=2, operation_ids=ops, skipped=[],
+                                             key=key, requested_by="celery test", key_id=None, role="reader")
+        rid = row.id
+    assert created
+    runner = BreakerDiagnosisRunner(lane.settings())
+    try:
+        runner.submit(rid)
+        deadline = time.monotonic() + 240
+        while True:
+            with lane.Session() as s:
+                row = s.get(BreakerDiagnosisRow, rid)
+                if row.status in ("done", "failed"):
+                    break
+            assert time.monotonic() < deadline, f"diagnosis still {row.status}:\n{lane.worker.log()[-2000:]}"
+            time.sleep(0.2)
+        assert row.status == "done", row.failure_reason
+        captures = row.result["captures"]  # a count in the issue-20 shape, a list per capture before it
+        assert row.result["operation_ids"] == ops and (captures if isinstance(captures, int) else len(captures)) == 2
+        finished = row.finished_at
+        runner.submit(rid)  # delivered again: the job finds it done
+        time.sleep(2.0)
+        with lane.Session() as s:
+            assert s.get(BreakerDiagnosisRow, rid).finished_at == finished
+    finally:
+        runner.shutdown()

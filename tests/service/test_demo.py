@@ -51,9 +51,9 @@ def _poll(fn, timeout, what):
 
 def test_demo_chain_shows_fits_then_a_do_alarm_for_the_oil_leak(demo, tmp_path):
     client, h, daq = demo
-    health = client.get("/healthz").json()
+    health = client.get("/healthz", headers=h).json()
     assert health["daq_driver"] == "modbus"
-    _poll(lambda: client.get("/healthz").json()["daq_connected"], 30, "DAQ connected")
+    _poll(lambda: client.get("/healthz", headers=h).json()["daq_connected"], 30, "DAQ connected")
 
     def do_trend():
         r = client.get("/api/v1/breakers/1/parameters", params={"name": "DO"}, headers=h)
@@ -79,7 +79,7 @@ def test_demo_chain_shows_fits_then_a_do_alarm_for_the_oil_leak(demo, tmp_path):
         client.get("/metrics", headers=h).text), 30, "all 45 captures in the metrics")
     assert 'hvcb_frames_dropped_total{breaker="reference-252kV"} 0.0' in metrics
     assert 'hvcb_crc_errors_total{breaker="reference-252kV"} 0.0' in metrics
-    health = client.get("/healthz").json()
+    health = client.get("/healthz", headers=h).json()
     (entry,) = health["daq"]
     assert entry["connected"] and entry["captures"] == 45 and entry["crc_errors"] == 0
 

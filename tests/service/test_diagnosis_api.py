@@ -5,7 +5,7 @@ import time
 import numpy as np
 
 from comtrade_bytes import comtrade_pair
-from service.acquisition.synthetic import synthesize_capture
+from drivers.synthetic import synthesize_capture
 from service.prototypes.a import Effects, make_prototype_simulator
 
 

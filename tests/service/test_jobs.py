@@ -69,14 +69,30 @@ def test_failed_fit_stores_reason_and_never_blocks_the_queue(stack, breaker):
     assert fits[good].status == "done" and fits[good].parameters["DO"] > 30
 
 
+class _HeldJobs:
+    """An executor that holds its jobs: the test runs them itself, when it is ready."""
+
+    def __init__(self):
+        self.submitted = []
+
+    def start(self) -> None: ...
+
+    def submit(self, operation_id: int) -> None:
+        self.submitted.append(operation_id)
+
+    def shutdown(self, *, wait: bool = True) -> None: ...
+
+
 def test_corrupted_capture_file_fails_with_checksum_reason(stack, breaker):
     monitor, Session, settings = stack()
+    monitor.executor = _HeldJobs()  # no background fit may read the file before it is corrupted
     res = monitor.ingest(synth(breaker, "open", 3), breaker_id=1, operation="open")
     with Session() as s:
         path = Path(crud.get_operation(s, operation_id=res.operation_id).capture_path)
     with open(path.with_suffix(".dat"), "r+b") as fh:
         fh.seek(100)
         fh.write(b"\x13\x37")
+    assert monitor.executor.submitted == [res.operation_id]
     run_fit_job(res.operation_id, JobOptions.from_settings(settings))
     with Session() as s:
         fit = crud.get_fit(s, operation_id=res.operation_id)

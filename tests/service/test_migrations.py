@@ -26,7 +26,7 @@ def test_migrations_up_down_up(db_url):
 def test_app_refuses_unmigrated_database(tmp_path):
     import pytest
 
-    from service.api.app import NotMigrated, check_schema
+    from service.storage.schema import NotMigrated, check_schema
 
     engine = make_engine(f"sqlite:///{tmp_path / 'empty.sqlite3'}")
     with pytest.raises(NotMigrated, match="hvcb migrate"):

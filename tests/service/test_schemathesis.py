@@ -6,13 +6,10 @@ production) on SQLite, with a valid admin key. Generation is bounded and derando
 
 from __future__ import annotations
 
-import socket
-import threading
-import time
-
 import pytest
 
 from conftest import make_settings
+from tests.live_server import LiveServer
 from service.storage import crud
 
 schemathesis = pytest.importorskip("schemathesis")
@@ -23,8 +20,6 @@ EXAMPLES_PER_OPERATION = 12
 
 @pytest.fixture
 def live_app(tmp_path):
-    import uvicorn
-
     from service.api.app import create_app
     from service.storage.db import upgrade
 
@@ -33,25 +28,12 @@ def live_app(tmp_path):
     upgrade(url)
     shown = []
     app = create_app(make_settings(tmp_path, url), on_key=shown.append)
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
-    server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="error", lifespan="on"))
-    thread = threading.Thread(target=server.run, name="uvicorn-schemathesis")
-    thread.start()
-    try:
-        deadline = time.monotonic() + 30
-        while not server.started:
-            assert thread.is_alive() and time.monotonic() < deadline, "uvicorn did not start"
-            time.sleep(0.05)
+    with LiveServer(app, name="uvicorn-schemathesis") as server:
         with app.state.Session() as s, s.begin():
             # the key used for fuzzing is not id 1, so fuzzed DELETE /keys/{id} rarely revokes it
             crud.create_api_key(s, name="spare", role="reader")
             _, key = crud.create_api_key(s, name="fuzz", role="admin")
-        yield app, f"http://127.0.0.1:{port}", key
-    finally:
-        server.should_exit = True
-        thread.join(timeout=30)
+        yield app, server.url, key
 
 
 def test_no_generated_request_gets_a_server_error(live_app):

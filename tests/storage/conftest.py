@@ -4,10 +4,10 @@ revision). SQLite always; PostgreSQL when HVCB_TEST_POSTGRES_URL is set and answ
 from __future__ import annotations
 
 import os
-import socket
-import uuid
 
 import pytest
+
+from service.storage.scratch import scratch_pg_database, unreachable
 
 PG_URL = os.environ.get("HVCB_TEST_POSTGRES_URL")
 
@@ -16,14 +16,8 @@ def _pg_skip_reason() -> str | None:
     if not PG_URL:
         return ("PostgreSQL lane off: set HVCB_TEST_POSTGRES_URL, e.g. "
                 "postgresql+psycopg://postgres@127.0.0.1:5432/test_mine")
-    from sqlalchemy.engine import make_url
-
-    u = make_url(PG_URL)
-    try:
-        with socket.create_connection((u.host or "127.0.0.1", u.port or 5432), timeout=1):
-            return None
-    except OSError as exc:
-        return f"PostgreSQL lane off: {u.host}:{u.port or 5432} does not answer ({exc})"
+    why = unreachable(PG_URL)
+    return f"PostgreSQL lane off: {why}" if why else None
 
 
 @pytest.fixture(scope="session")
@@ -33,25 +27,13 @@ def pg_database():
     if why:
         print(why)
         pytest.skip(why)
-    yield from temporary_pg_database(f"hvcb_storage_{os.getpid()}_{uuid.uuid4().hex[:6]}")
+    yield from temporary_pg_database("hvcb_storage")
 
 
-def temporary_pg_database(name: str):
-    """Create database ``name`` on the PostgreSQL lane's server, yield its URL, drop it."""
-    from sqlalchemy import text
-    from sqlalchemy.engine import make_url
-
-    from service.storage.db import make_engine
-
-    admin = make_engine(PG_URL)
-    with admin.connect().execution_options(isolation_level="AUTOCOMMIT") as conn:
-        conn.execute(text(f'CREATE DATABASE "{name}"'))
-    try:
-        yield make_url(PG_URL).set(database=name).render_as_string(hide_password=False)
-    finally:
-        with admin.connect().execution_options(isolation_level="AUTOCOMMIT") as conn:
-            conn.execute(text(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)'))
-        admin.dispose()
+def temporary_pg_database(prefix: str):
+    """A scratch database on the PostgreSQL lane's server (yields its URL; dropped afterwards)."""
+    with scratch_pg_database(PG_URL, prefix) as url:
+        yield url
 
 
 @pytest.fixture(params=["sqlite", pytest.param("postgres", marks=pytest.mark.postgres)])

@@ -18,7 +18,7 @@ ALARMS = {"baseline_n": 12, "watched": {"DO": "falling"}}
 
 def synth_captures():
     """One opening capture of the reference breaker (with its vibration channel)."""
-    from service.acquisition.synthetic import synthesize_capture
+    from drivers.synthetic import synthesize_capture
     from service.breaker_file import load_breaker
 
     breaker = load_breaker(BREAKER_FILE)

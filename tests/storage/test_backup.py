@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 import threading
-import uuid
 from datetime import datetime, timedelta, timezone
 from pathlib import Path
 
@@ -27,7 +26,7 @@ def restore_url(empty_db_url, tmp_path):
     if empty_db_url.startswith("sqlite"):
         yield f"sqlite:///{tmp_path / 'restored' / 'data' / 'hvcb.sqlite3'}"
         return
-    yield from temporary_pg_database(f"hvcb_restore_{uuid.uuid4().hex[:8]}")
+    yield from temporary_pg_database("hvcb_restore")
 
 
 def _config(path: Path, data_dir: Path, url: str) -> Path:

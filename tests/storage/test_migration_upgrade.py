@@ -170,9 +170,15 @@ def seed_capture_previews() -> dict[str, list[dict]]:
                                                "buckets": 100})]}
 
 
+def seed_alarm_actions() -> dict[str, list[dict]]:
+    return {"alarm_actions": [dict(id=1, breaker_id=1, alarm_id=None, action="shelve", by="operator-1",
+                                   at=T0 + timedelta(days=3), reason="crew on site",
+                                   until=T0 + timedelta(days=3, hours=8))]}
+
+
 # Revision -> the rows that revision's new tables hold. A migration that adds a table adds its seed.
 SEEDS = {"0001": seed_initial, "0002": seed_diagnoses, "0003_web": seed_web_sessions,
-         "0004": seed_fit_versions, "0005": seed_capture_previews}
+         "0004": seed_fit_versions, "0005": seed_capture_previews, "0007": seed_alarm_actions}
 
 
 # -- helpers -------------------------------------------------------------------------------------

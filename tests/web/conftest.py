@@ -2,7 +2,7 @@
 package) driven by Playwright. One server and one browser per module.
 
 Without a browser the tests skip with the reason. ``HVCB_CHROMIUM`` names another executable.
-``HVCB_WEB_SCREENSHOTS=DIR`` makes the tests save the README's screenshots there.
+``HVCB_WEB_SCREENSHOTS=DIR`` makes the tests save the docs' screenshots there (docs/screenshots).
 """
 
 from __future__ import annotations

@@ -88,6 +88,13 @@ def test_sign_in_then_the_fleet_shows_the_breaker_with_its_status(live, ctx):
     assert page.evaluate("() => localStorage.length + sessionStorage.length") == 0
     assert not page.evaluate("() => document.cookie.includes('hvcb_session')")
     screenshot(page, "fleet")
+    # the API docs are served from the app's own vendored Swagger UI: they render offline
+    docs = log.watch(context.new_page())
+    docs.goto(live.base + "/docs")
+    docs.wait_for_selector(".swagger-ui .info .title", timeout=30000)
+    assert "hvcb" in docs.locator(".swagger-ui .info .title").inner_text()
+    assert docs.locator(".opblock").count() > 10  # the operations were read from /openapi.json
+    assert any(u.endswith("/static/vendor/swagger-ui/swagger-ui-bundle.js") for u in log.requests)
     clean(log)
 
 

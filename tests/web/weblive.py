@@ -6,14 +6,14 @@ from __future__ import annotations
 import os
 import re
 import shutil
-import socket
-import threading
 import time
 from datetime import datetime, timedelta, timezone
 from pathlib import Path
 
 import numpy as np
 import pytest
+
+from tests.live_server import LiveServer
 
 REPO = Path(__file__).resolve().parents[2]
 BREAKER_FILE = REPO / "config" / "breakers" / "reference-252kV.toml"
@@ -25,12 +25,6 @@ T0 = datetime(2026, 11, 2, 6, 0, tzinfo=timezone.utc)
 def chromium_path() -> str | None:
     path = os.environ.get("HVCB_CHROMIUM") or shutil.which("chromium") or shutil.which("chromium-browser")
     return path if path and Path(path).exists() else None
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 class LiveApp:
@@ -60,7 +54,7 @@ class LiveApp:
 
 
 def synth(breaker, kind: str, seed: int, scale: dict | None = None, start_time=None):
-    from service.acquisition.synthetic import synthesize_capture
+    from drivers.synthetic import synthesize_capture
 
     p = dict(breaker.design_parameters())
     rng = np.random.default_rng(seed)
@@ -85,8 +79,6 @@ def history(breaker, n_open: int = 12, leak_from: int = 6, close_every: int = 4)
 
 def start_server(tmp_path, *, name: str | None = None, alarms: dict | None = None, poll_s: float = 1.0):
     """(LiveApp, stop) with the service on a fresh SQLite database and the inline fit executor."""
-    import uvicorn
-
     from service.api.app import create_app
     from service.settings import load_settings
     from service.storage import crud
@@ -101,25 +93,13 @@ def start_server(tmp_path, *, name: str | None = None, alarms: dict | None = Non
                              web={"poll_s": poll_s})
     shown = []
     app = create_app(settings, on_key=shown.append)
-    port = free_port()
-    server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning", lifespan="on"))
-    thread = threading.Thread(target=server.run, name="hvcb-web-test-server", daemon=True)
-    thread.start()
-    deadline = time.monotonic() + 30
-    while not server.started:
-        if time.monotonic() > deadline or not thread.is_alive():
-            raise RuntimeError("the test server did not start")
-        time.sleep(0.05)
+    server = LiveServer(app, name="hvcb-web-test-server", log_level="warning").start()
     keys = {"admin": shown[0]} if shown else {}
     with app.state.Session() as s, s.begin():
         for role in ("reader", "operator", "admin")[: 2 if shown else 3]:
             keys[role] = crud.create_api_key(s, name=name or f"web-{role}", role=role)[1]
 
-    def stop():
-        server.should_exit = True
-        thread.join(timeout=15)
-
-    return LiveApp(app, f"http://127.0.0.1:{port}", keys), stop
+    return LiveApp(app, server.url, keys), server.stop
 
 
 class PageLog:

@@ -16,8 +16,8 @@ from pydantic import BaseModel, Field
 from sqlalchemy import select
 from typing import Annotated
 
-from service.api.deps import AdminDep, SessionDep
-from service.api.schemas import ORM, Message, UtcTime
+from .deps import AdminDep, SessionDep
+from .schemas import ORM, Message, UtcTime
 from service.errors import UserError
 from service.storage.models import RefitRunRow
 
@@ -59,8 +59,8 @@ class RefitRunner:
     def _run(self, run_id: int) -> None:
         from service.jobs.fit import JobOptions
 
-        from . import pool
-        from .runs import run_refit
+        from service.refit import pool
+        from service.refit.runs import run_refit
 
         options = JobOptions.from_settings(self.settings)
         kind = self.settings.executor_kind
@@ -94,7 +94,7 @@ def _runner(request: Request) -> RefitRunner:
 def queue_refit(body: RefitCreate, request: Request, session: SessionDep, who: AdminDep):
     """Queue a refit of the stored operations (admin). An unfinished run with the same selection
     is resumed instead of starting a second one."""
-    from .runs import start_run
+    from service.refit.runs import start_run
 
     try:
         run, _ = start_run(session, breaker=body.breaker, since=body.since, requested_by=who.name)

@@ -1,0 +1,231 @@
+"""False-alarm rates and detection delays of the drift detector, by simulation with the real code.
+
+    nice .venv/bin/python bench/alarm_rates.py [--breakers 1000] [--ops 1020] [--workers 2]
+
+Every simulated fit goes through ``service.alarms.update``, the function the fit job calls.
+Noise model (docs/alarms.md): per breaker a run-to-run sd drawn in 1-2 %; per fit a 95 % CI
+half-width drawn in 0.8-1.2 % (the measured fit CIs) and a fit error consistent with it; 1 % of
+fits are gross outliers, off by 5-30 % either way. One operation a day at a random hour.
+
+Cases: in control (no temperature effect, none given); drifts (ramps of 1 %/op, a slow leak of
+-0.1 %/op, 5 % steps) starting at operation 30 (young baseline) and 300 (frozen baseline);
+seasonal temperature (-25..+40 C over a year, daily swings, DO -0.4 %/K, BO -0.03 %/K) with and
+without the temperature given to the detector. Writes bench/results/alarm_rates.json.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor
+from datetime import datetime, timedelta, timezone
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from service.alarms import DriftSettings, DriftState, FitObservation, update  # noqa: E402
+
+NOMINAL = {"DO": 39.5, "BO": 4806.0}  # reference breaker [s^-1], [s^-2]
+TEMP_SLOPE = {"DO": -0.004, "BO": -0.0003}  # simulated temperature dependence [1/K]
+T_REF = 20.0  # [C]
+Z95 = 1.959963984540054
+T0 = datetime(2024, 1, 1, tzinfo=timezone.utc)
+OUTLIER_P = 0.01
+RESULTS = Path(__file__).resolve().parent / "results" / "alarm_rates.json"
+
+
+def temperature(day: np.ndarray, hour: np.ndarray, rng) -> np.ndarray:
+    """Ambient temperature [C]: -25..+40 C over a year (coldest about 20 January), a daily swing
+    of +-6 K (warmest mid-afternoon) and 2 K of day-to-day weather."""
+    season = 7.5 - 32.5 * np.cos(2 * np.pi * (day - 20) / 365.25)
+    daily = 6.0 * np.sin(2 * np.pi * (hour - 9) / 24)
+    return np.clip(season + daily + rng.normal(0, 2.0, day.size), -25.0, 40.0)
+
+
+def history(rng, parameter: str, n_ops: int, *, drift: str = "none", rate: float = 0.0,
+            start: int = 30, seasonal: bool = False, give_temperature: bool = False):
+    """Observations of operations 1..n_ops of one breaker and one parameter.
+
+    drift "ramp": relative change rate*(i - start) for i > start; "step": rate for i > start.
+    """
+    p = NOMINAL[parameter]
+    sd_run = rng.uniform(0.01, 0.02)
+    i = np.arange(1, n_ops + 1)
+    if drift == "ramp":
+        factor = 1.0 + rate * np.maximum(0, i - start)
+    elif drift == "step":
+        factor = np.where(i > start, 1.0 + rate, 1.0)
+    else:
+        factor = np.ones(n_ops)
+    day0 = rng.uniform(0, 365)
+    day = day0 + i
+    hour = rng.uniform(0, 24, n_ops)
+    temp = temperature(day, hour, rng)
+    if seasonal:
+        factor = factor * (1.0 + TEMP_SLOPE[parameter] * (temp - T_REF))
+    half = rng.uniform(0.008, 0.012, n_ops) * p
+    x = p * factor * (1.0 + sd_run * rng.standard_normal(n_ops)) + half / Z95 * rng.standard_normal(n_ops)
+    out = rng.random(n_ops) < OUTLIER_P
+    x[out] *= 1.0 + rng.choice([-1.0, 1.0], out.sum()) * rng.uniform(0.05, 0.30, out.sum())
+    return [FitObservation(operation_id=int(op), time=T0 + timedelta(days=float(d), hours=float(h)),
+                           value=float(v), ci95=(float(v - hw), float(v + hw)),
+                           temperature=float(t) if give_temperature else None)
+            for op, d, h, v, hw, t in zip(i, i, hour, x, half, temp)]
+
+
+def run(history_obs, parameter: str, settings: DriftSettings):
+    """Feed the history; return (monitored fits, warnings raised, alarms reached,
+    first warning op, first alarm op)."""
+    state = DriftState.new(parameter, settings)
+    warnings = alarms = 0
+    first_w = first_a = None
+    for obs in history_obs:
+        state, events = update(state, obs, settings)
+        for e in events:
+            if e.kind == "raised":
+                warnings += 1
+                first_w = first_w or e.operation_id
+            if e.kind in ("raised", "escalated") and e.level == "alarm":
+                alarms += 1
+                first_a = first_a or e.operation_id
+    return state.fits_monitored, warnings, alarms, first_w, first_a
+
+
+def _job(args):
+    kind, parameter, seeds, kw, settings_dict = args
+    settings = DriftSettings.from_mapping(settings_dict)
+    out = []
+    for seed in seeds:
+        rng = np.random.default_rng(seed)
+        out.append(run(history(rng, parameter, **kw), parameter, settings))
+    return kind, parameter, out
+
+
+def _chunks(seq, n):
+    return [seq[i:i + n] for i in range(0, len(seq), n)]
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--breakers", type=int, default=1000, help="in-control breakers")
+    ap.add_argument("--ops", type=int, default=1020, help="operations per in-control breaker")
+    ap.add_argument("--seasonal-breakers", type=int, default=500)
+    ap.add_argument("--uncompensated-breakers", type=int, default=100)
+    ap.add_argument("--drift-histories", type=int, default=1000, help="per drift case, onset at op 30")
+    ap.add_argument("--frozen-drift-histories", type=int, default=500, help="per drift case, onset at op 300")
+    ap.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1))
+    ap.add_argument("--seed", type=int, default=2026)
+    ap.add_argument("--out", type=Path, default=RESULTS)
+    a = ap.parse_args(argv)
+    settings = DriftSettings()
+    sd = settings.to_dict()
+    t_start = time.perf_counter()
+
+    jobs = []
+
+    def add(kind, parameter, n, kw, case):
+        seeds = [[a.seed, case, b] for b in range(n)]
+        for ch in _chunks(seeds, 25):
+            jobs.append((kind, parameter, ch, kw, sd))
+
+    case = 0
+    for p in ("DO", "BO"):
+        case += 1
+        add("control", p, a.breakers, {"n_ops": a.ops}, case)
+        case += 1
+        add("seasonal", p, a.seasonal_breakers,
+            {"n_ops": a.ops, "seasonal": True, "give_temperature": True}, case)
+        case += 1
+        add("seasonal_uncompensated", p, a.uncompensated_breakers,
+            {"n_ops": a.ops, "seasonal": True, "give_temperature": False}, case)
+    drifts = [("ramp1", "DO", "ramp", -0.01), ("ramp1", "BO", "ramp", -0.01), ("ramp1", "BO", "ramp", +0.01),
+              ("leak", "DO", "ramp", -0.001),
+              ("step5", "DO", "step", -0.05), ("step5", "BO", "step", -0.05), ("step5", "BO", "step", +0.05)]
+    for start in (30, 300):
+        for name, p, drift, rate in drifts:
+            case += 1
+            length = {"ramp1": 40, "leak": 200, "step5": 30}[name]
+            add(f"{name}@{start}", p, a.drift_histories if start == 30 else a.frozen_drift_histories,
+                {"n_ops": start + length, "drift": drift, "rate": rate, "start": start}, case)
+
+    results: dict = {}
+    with ProcessPoolExecutor(max_workers=a.workers) as pool:
+        for kind, parameter, out in pool.map(_job, jobs):
+            results.setdefault((kind, parameter), []).extend(out)
+    elapsed = time.perf_counter() - t_start
+
+    def rates(kind):
+        ops = {p: sum(r[0] for r in results[(kind, p)]) for p in ("DO", "BO")}
+        breakers = len(results[(kind, "DO")])
+        per_breaker_ops = ops["DO"] / breakers  # DO and BO of a breaker see the same operations
+        w = sum(r[1] for p in ("DO", "BO") for r in results[(kind, p)])
+        al = sum(r[2] for p in ("DO", "BO") for r in results[(kind, p)])
+        total_ops = per_breaker_ops * breakers
+        return total_ops, w / total_ops * 1e4, al / total_ops * 1e4
+
+    def delays(kind, parameters, start, level=4):
+        """Delays [ops after the onset] of the first alarm (level 4) or warning (3); a history
+        that alarmed before the onset or never is counted apart."""
+        d, missed = [], 0
+        for p in parameters:
+            for r in results[(kind, p)]:
+                op = r[level]
+                if op is None or op <= start:
+                    missed += 1
+                else:
+                    d.append(op - start)
+        return np.array(d), missed
+
+    ic_ops, ic_w, ic_a = rates("control")
+    se_ops, se_w, se_a = rates("seasonal")
+    su_ops, su_w, su_a = rates("seasonal_uncompensated")
+    out = {"in_control_operations": int(ic_ops), "in_control_breakers": a.breakers,
+           "false_warnings_per_10k_ops": round(ic_w, 4), "false_alarms_per_10k_ops": round(ic_a, 4)}
+    for start in (30, 300):
+        sfx = "" if start == 30 else "_frozen_baseline"
+        d, missed = delays(f"ramp1@{start}", ["DO", "BO"], start)
+        out[f"ramp_1pct_delay_median_ops{sfx}"] = float(np.median(d))
+        out[f"ramp_1pct_delay_p95_ops{sfx}"] = float(np.percentile(d, 95))
+        out[f"ramp_1pct_delay_max_ops{sfx}"] = int(d.max())
+        out[f"ramp_1pct_not_after_onset{sfx}"] = int(missed)
+        dl, ml = delays(f"leak@{start}", ["DO"], start)
+        drop = dl * 0.1  # % fallen when the alarm came
+        out[f"ramp_0p1pct_detect_median_drop_pct{sfx}"] = float(np.median(drop)) if drop.size else None
+        out[f"ramp_0p1pct_detect_p95_drop_pct{sfx}"] = float(np.percentile(drop, 95)) if drop.size else None
+        out[f"ramp_0p1pct_missed_or_early{sfx}"] = int(ml)
+        ds, ms = delays(f"step5@{start}", ["DO", "BO"], start)
+        out[f"step_5pct_delay_median_ops{sfx}"] = float(np.median(ds))
+        out[f"step_5pct_delay_p95_ops{sfx}"] = float(np.percentile(ds, 95))
+        out[f"step_5pct_within_3_ops_fraction{sfx}"] = round(float(np.mean(ds <= 3)), 4)
+        out[f"step_5pct_not_after_onset{sfx}"] = int(ms)
+        dw = delays(f"ramp1@{start}", ["DO", "BO"], start, level=3)[0]
+        out[f"ramp_1pct_warning_delay_median_ops{sfx}"] = float(np.median(dw))
+    out.update({"seasonal_operations": int(se_ops),
+                "seasonal_false_warnings_per_10k_ops": round(se_w, 4),
+                "seasonal_false_alarms_per_10k_ops": round(se_a, 4),
+                "seasonal_uncompensated_operations": int(su_ops),
+                "seasonal_false_warnings_per_10k_ops_uncompensated": round(su_w, 4),
+                "seasonal_false_alarms_per_10k_ops_uncompensated": round(su_a, 4),
+                "drift_histories_per_case": a.drift_histories,
+                "frozen_drift_histories_per_case": a.frozen_drift_histories,
+                "thresholds": {"k": settings.k, "h_warning": round(settings.h_warning, 4),
+                               "h_alarm": round(settings.h_alarm, 4), "z_cap": settings.z_cap,
+                               "baseline_n": settings.baseline_n, "baseline_max": settings.baseline_max},
+                "targets": {"false_warnings_per_10k_ops": 0.5, "false_alarms_per_10k_ops": 0.05,
+                            "ramp_1pct_delay_median_ops": 6, "ramp_1pct_delay_p95_ops": 10,
+                            "ramp_0p1pct_detect_median_drop_pct": 8, "step_5pct_delay_median_ops": 3},
+                "seed": a.seed, "runtime_s": round(elapsed, 1), "workers": a.workers})
+    print(json.dumps(out, indent=2))
+    a.out.parent.mkdir(parents=True, exist_ok=True)
+    a.out.write_text(json.dumps(out, indent=2) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

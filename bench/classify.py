@@ -1,0 +1,90 @@
+"""Benchmark: Table 9 under field nuisance (issue 22): accuracy of both protocols, wall time, and
+the same rule on the simulator's true BO.
+
+Runs ``hvcb study classify`` into a fresh directory (or reads one already run, ``--from DIR``),
+prints the headline figures against the targets (cv5 proposed ≥ 98.3 %, cross_unit proposed
+≥ 95 %, ≤ 30 min on two cores) and writes bench/results/classify.json.
+
+The reference: the proposed rule applied to the simulator's *true* BO of every capture (no fit
+error, no sensor gain), with the same folds. In cv5 it shows what the friction draw alone leaves
+to any reading of BO; across units it shows how far unit 2's true BO sits from unit 1's.
+
+Run: nice .venv/bin/python bench/classify.py [--from out/classify] [--workers 2]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from service.studies import classify
+from service.studies.classification_methods import DEFAULT_SEED, classification_spec, folds_for
+from service.studies.condition_classifiers import NearestNominal, cross_validate, train_test
+
+ROOT = Path(__file__).resolve().parents[1]
+LIMIT_S = 30 * 60  # issue 22: one command, both protocols, within 30 minutes on two cores
+
+
+def truth_reference(out_dir: Path, seed: int, friction_spread: float | None = None) -> dict:
+    """Accuracy of nearest-nominal on the true BO (cv5 on unit 1, unit 1 -> unit 2)."""
+    changes = {} if friction_spread is None else {"friction_spread": friction_spread}
+    data = {}
+    for u in (1, 2):
+        spec = classification_spec(seed, False, unit=u, **changes)
+        with np.load(out_dir / f"dataset-open-{spec.key()}.npz") as z:
+            names = [str(n) for n in z["names"]]
+            data[u] = (z["truth"][:, [names.index("BO")]], z["condition"])
+    (x1, y1), (x2, y2) = data[1], data[2]
+    folds = folds_for(y1, seed)
+    cv = cross_validate(NearestNominal, x1, y1, folds)
+    return {"cv5": float(np.mean(cv["fold_accuracy"])),
+            "cross_unit": train_test(NearestNominal, x1, y1, x2, y2)["accuracy"]}
+
+
+def main() -> dict:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--from", dest="src", type=Path, help="a directory `hvcb study classify` wrote")
+    ap.add_argument("--workers", type=int, default=2)
+    args = ap.parse_args()
+    seed = DEFAULT_SEED
+    with tempfile.TemporaryDirectory() as tmp:
+        out_dir = args.src or Path(tmp)
+        if args.src is None:
+            t0 = time.perf_counter()
+            classify.run(out_dir, seed=seed, workers=args.workers)
+            wall = time.perf_counter() - t0
+        res = json.loads((out_dir / "classify.json").read_text())
+        if args.src is not None:
+            wall = res["wall_time_s"]["total"]
+        reference = {"main": truth_reference(out_dir, seed)}
+        for spread in res["friction_sweep"]:
+            reference[spread] = truth_reference(out_dir, seed, float(spread))
+    out = {"machine": platform.processor() or platform.machine(), "python": platform.python_version(),
+           "seed": seed, "protocols": res["protocols"], "variants": res["variants"],
+           "friction_sweep": res["friction_sweep"], "truth_bo_reference": reference,
+           "targets": {"cv5_proposed": 0.983, "cross_unit_proposed": 0.95, "wall_s": LIMIT_S},
+           "pass": {"cv5_proposed": res["protocols"]["cv5"]["proposed"] >= 0.983,
+                    "cross_unit_proposed": res["protocols"]["cross_unit"]["proposed"] >= 0.95,
+                    "wall_s": wall <= LIMIT_S},
+           "wall_s": round(wall, 1), "wall_time_s": res["wall_time_s"]}
+    for p in ("cv5", "cross_unit"):
+        print(p + ": " + ", ".join(f"{m} {100 * a:.1f} %" for m, a in res["protocols"][p].items())
+              + f"; same rule on the true BO {100 * reference['main'][p]:.1f} %")
+    for spread, row in res["friction_sweep"].items():
+        print(f"TOf ±{100 * float(spread):g} %: " + "; ".join(
+            f"{p} " + ", ".join(f"{m} {100 * a:.1f} %" for m, a in row[p].items())
+            + f" (true BO {100 * reference[spread][p]:.1f} %)" for p in ("cv5", "cross_unit")))
+    print(f"wall {wall:.0f} s (limit {LIMIT_S} s); pass: {out['pass']}")
+    (ROOT / "bench" / "results").mkdir(exist_ok=True)
+    (ROOT / "bench" / "results" / "classify.json").write_text(json.dumps(out, indent=1) + "\n")
+    return out
+
+
+if __name__ == "__main__":
+    main()

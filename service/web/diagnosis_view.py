@@ -1,0 +1,133 @@
+"""What the breaker page shows of a breaker diagnosis: the stored result turned into plain rows.
+
+The diagnosis core's result is read defensively (``.get`` everywhere): a key it does not carry is
+simply not shown. Both the issue-20 shape (``where``, ``probabilities``, ``next_measurement``, ...)
+and the earlier one (``verdict``, ``gap.phases``, ``how_far``) are understood.
+"""
+
+from __future__ import annotations
+
+import math
+
+BAR_W = 250.0  # px of the longest bar in the "where" chart
+
+
+def _num(v) -> float | None:
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        return None
+    return f if math.isfinite(f) else None
+
+
+def _where(r: dict) -> list[dict]:
+    """[{phase, t0_s, t1_s, before, after}] with before/after as gap ÷ noise."""
+    rows = []
+    if isinstance(r.get("where"), list):
+        for w in r["where"]:
+            if isinstance(w, dict):
+                rows.append({"phase": str(w.get("phase", "?")), "t0_s": _num(w.get("t0_s")),
+                             "t1_s": _num(w.get("t1_s")), "before": _num(w.get("gap_before")),
+                             "after": _num(w.get("gap_after"))})
+        return rows
+    gap = r.get("gap") if isinstance(r.get("gap"), dict) else {}
+    how = r.get("how_far") if isinstance(r.get("how_far"), dict) else {}
+    after = {p.get("name"): p for p in how.get("phases_after") or [] if isinstance(p, dict)}
+    for p in gap.get("phases") or []:
+        if isinstance(p, dict):
+            a = after.get(p.get("name"))
+            rows.append({"phase": str(p.get("name", "?")), "t0_s": _num(p.get("t0_s")), "t1_s": _num(p.get("t1_s")),
+                         "before": _num(p.get("ratio_to_noise")),
+                         "after": _num(a.get("ratio_to_noise")) if a else None})
+    return rows
+
+
+def _bars(where: list[dict]) -> dict:
+    """Bar geometry: widths in px on a common scale, and where the noise floor (ratio 1) falls."""
+    top = max([2.0] + [v for w in where for v in (w["before"], w["after"]) if v is not None])
+    scale = BAR_W / top
+    for w in where:
+        w["before_px"] = round(max(0.0, w["before"] or 0.0) * scale, 1)
+        w["after_px"] = None if w["after"] is None else round(max(0.0, w["after"]) * scale, 1)
+    return {"noise_px": round(scale, 1), "height": 40 * len(where) + 30}
+
+
+def _params(reduced, corrected) -> dict:
+    """Per parameter: the reduced fit and the corrected value, each the mean over the captures
+    (with the captures' range), and the correction in %. From {name: value}, or a list of such
+    per capture. Corrected values equal to the reduced ones (nothing named) are not repeated."""
+    def as_list(x):
+        if isinstance(x, dict) and x and all(isinstance(v, dict) for v in x.values()):
+            return list(x.values())
+        if isinstance(x, dict):
+            return [x] if x else []
+        if isinstance(x, list):
+            return [d for d in x if isinstance(d, dict)]
+        return []
+
+    def stats(ds, name):
+        vals = [v for v in (_num(d.get(name)) for d in ds) if v is not None]
+        if not vals:
+            return None, None, None
+        return sum(vals) / len(vals), min(vals), max(vals)
+
+    red, cor = as_list(reduced), as_list(corrected)
+    if cor and red and len(cor) == len(red) and all(
+            all(_num(c.get(k)) == _num(r.get(k)) for k in set(c) | set(r)) for c, r in zip(cor, red)):
+        cor = []
+    names: list[str] = []
+    for d in red + cor:
+        names += [k for k in d if k not in names]
+    rows = []
+    for n in names:
+        rm, rlo, rhi = stats(red, n)
+        cm, _, _ = stats(cor, n)
+        change = (cm - rm) / abs(rm) if cm is not None and rm not in (None, 0.0) else None
+        rows.append({"name": n, "reduced": rm, "lo": rlo if len(red) > 1 else None,
+                     "hi": rhi if len(red) > 1 else None, "corrected": cm, "change": change})
+    return {"rows": rows, "corrected": bool(cor), "n": len(red)}
+
+
+def view(r: dict | None) -> dict | None:
+    """The rows the template draws, or None without a result."""
+    if not isinstance(r, dict):
+        return None
+    status = str(r.get("status") or r.get("verdict") or "?")
+    effects = r.get("effects")
+    if not isinstance(effects, list):
+        v = r.get("verdict")
+        effects = [v] if isinstance(v, str) and v not in ("none", "unexplained") else []
+    probs = r.get("probabilities") if isinstance(r.get("probabilities"), dict) else {}
+    probabilities = sorted(((str(k), _num(v)) for k, v in probs.items()), key=lambda kv: -(kv[1] or 0.0))
+    rivals = [{"effect": str(x.get("effect", "?")), "probability": _num(x.get("probability"))}
+              for x in r.get("rivals") or [] if isinstance(x, dict)]
+    absorbed = []
+    for a in r.get("absorbed") or []:
+        if isinstance(a, dict):
+            bias = a.get("parameter_bias", a.get("parameter_shift"))
+            absorbed.append({"effect": str(a.get("effect", "?")),
+                             "bias": {str(k): _num(v) for k, v in bias.items()} if isinstance(bias, dict) else {}})
+    gap = r.get("gap") if isinstance(r.get("gap"), dict) else {}
+    how = r.get("how_far") if isinstance(r.get("how_far"), dict) else {}
+    far = {"before": _num(gap.get("before_rms_rad", gap.get("rmse_rad"))),
+           "after": _num(gap.get("after_rms_rad", how.get("rmse_rad_after"))),
+           "noise": _num(gap.get("noise_rad")), "shrink": _num(gap.get("shrink", how.get("shrink")))}
+    reduced = r.get("reduced_parameters")
+    if reduced is None and isinstance(r.get("captures"), list):
+        reduced = [c.get("reduced_parameters") for c in r["captures"] if isinstance(c, dict)
+                   and isinstance(c.get("reduced_parameters"), dict)]
+    corrected = r.get("corrected_parameters", how.get("corrected_parameters"))
+    nxt = [{"measurement": str(m.get("measurement", "?")), "delta_bic": _num(m.get("expected_delta_bic")),
+            "separates": [str(s) for s in m.get("separates") or []] if isinstance(m.get("separates"), list)
+            else ([str(m["separates"])] if m.get("separates") else [])}
+           for m in r.get("next_measurement") or [] if isinstance(m, dict)]
+    where = _where(r)
+    messages = [str(r["message"])] if r.get("message") else []
+    messages += [str(w) for w in r.get("warnings") or [] if isinstance(w, str)]
+    mild = [str(m) for m in r.get("mild") or [] if isinstance(m, str)] if isinstance(r.get("mild"), list) else []
+    return {"status": status, "effects": [str(e) for e in effects], "probabilities": probabilities,
+            "answer": str(r["answer"]) if r.get("answer") else None,
+            "answer_probability": _num(r.get("answer_probability")), "mild": mild,
+            "rivals": rivals, "absorbed": absorbed, "far": far, "where": where, "bars": _bars(where),
+            "params": _params(reduced, corrected), "next": nxt, "messages": messages,
+            "captures": len(r["captures"]) if isinstance(r.get("captures"), list) else None}
