@@ -94,8 +94,10 @@ def test_closing_refused_without_cam_table(tmp_path):
 
 def test_closing_fitted_when_the_breaker_file_has_the_cam(tmp_path):
     """A known design (the reference's cam and α0) recorded in mm: its closing is fitted."""
+    import shutil
+
+    shutil.copy(REPO / "config/breakers/reference-252kV.cam.csv", tmp_path)
     src = (REPO / "config/breakers/reference-252kV.toml").read_text().replace(
-        'profile = "reference-252kV.cam.csv"', f'profile = "{REPO}/config/breakers/reference-252kV.cam.csv"').replace(
         "stroke_rad = 1.0 ", 'stroke_rad = 1.0\nrecord_unit = "mm"\nrecord_zero = "open"\nmm_per_rad = 182.0\n#')
     (tmp_path / "ref-mm.toml").write_text(src)
     b = load_breaker(tmp_path / "ref-mm.toml")
