@@ -125,7 +125,9 @@ def test_acceptance_shared_co_record_detect_and_fit():
     assert [o["operation"] for o in ops] == ["close", "open"]
     assert ops[0]["t_start_s"] == pytest.approx(0.0, abs=2e-3)     # close coil at 0 ms
     assert ops[1]["t_start_s"] == pytest.approx(0.300, abs=2e-3)   # trip coil at t_co = 300 ms
-    assert ops[1]["motion_start_s"] == pytest.approx(0.314, abs=3e-3)
+    # motion_start_s is where the travel has left its rest by 2 % of the stroke: after the
+    # README's onset (~314 ms) by the 2.8 ms the reference model needs to move that far.
+    assert 0.314 <= ops[1]["motion_start_s"] <= 0.314 + 2.8e-3 + 2e-3
     fit = subprocess.run(run + ["fit", str(EXAMPLE), "--breaker", GENERIC, "--operation", "open", "--json"],
                          capture_output=True, text=True, timeout=300, cwd=REPO)
     assert fit.returncode == 0, fit.stderr
