@@ -12,7 +12,7 @@ section. Kept apart from ``breaker_file`` so that file only calls :func:`travel_
                               #   the record's zero position, monotonic (a non-linear linkage)
 
     [unknown_design]          # a breaker whose design is not known
-    estimate = ["alpha0"]     # structure the opening fit estimates from the curve itself
+    estimate = ["alpha0", "CO"]  # structure the opening fit estimates from the curve itself
 
 The model's travel is rad from closed; ``record_zero = "open"`` flips it.
 """
@@ -27,7 +27,7 @@ import numpy as np
 from drivers.capture import ChannelName
 
 LENGTH_UNITS = {"mm": 1.0, "m": 1e3, "cm": 10.0}  # to mm
-ESTIMABLE = ("alpha0",)
+ESTIMABLE = ("alpha0", "CO")
 
 
 class TravelMapError(ValueError):

@@ -175,7 +175,7 @@ class DetectedOperation:
                "capture_end_s": (cap.first_sample_index + cap.travel.size - origin_index) / fs}
         if cap.meta.get("command_source"):  # an analyser record: the command is a coil's rise
             out["command"] = cap.meta["command_source"]
-        if cap.meta.get("motion_s") is not None:
+        if cap.meta.get("motion_s") is not None:  # where the travel leaves its rest by 2 % of the stroke
             out["motion_start_s"] = (cap.first_sample_index - origin_index) / fs + float(cap.meta["motion_s"])
         return out
 

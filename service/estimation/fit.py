@@ -163,10 +163,10 @@ def fit_capture(capture: Capture, breaker: Breaker, operation: str, *, dc: float
             result.stages.insert(0, {"fallback": fallback})
             result.start = f"cold search (warm start from {prior.source} left " \
                            f"{fallback['rmse_over_noise']:.1f}× the noise floor)"
-    if "alpha0" in breaker.estimate_structure and operation == "open":
-        from .structure import fit_alpha0
+    if breaker.estimate_structure and operation == "open":
+        from .structure import fit_structure
 
-        breaker = fit_alpha0(result, window, breaker, settings)  # the curve's own α0, in the CIs
+        breaker = fit_structure(result, window, breaker, settings)  # the curve's own α0 (CO), in the CIs
         result.rmse_rad = _rmse_at_samples(capture, breaker, result, window, dc)
     if operation == "close":
         result.dc_used, result.dc_source = dc, dc_source

@@ -135,12 +135,13 @@ class FitResult:
         """
         return fitted_travel(self.operation, self.parameters, self.window_s[0], self.onset_delay_s,
                              capture.t, breaker, dc_used=self.dc_used,
-                             alpha0=self.structure.get("alpha0", {}).get("value"))
+                             alpha0=self.structure.get("alpha0", {}).get("value"),
+                             co=self.structure.get("CO", {}).get("value"))
 
 
 def fitted_travel(operation: str, parameters: dict, window_start_s: float, onset_delay_s: float,
                   t: np.ndarray, breaker: Breaker, *, dc_used: float | None = None,
-                  alpha0: float | None = None) -> np.ndarray:
+                  alpha0: float | None = None, co: float | None = None) -> np.ndarray:
     """The model curve of a stored fit, rebuilt from its parameters (nothing else is stored).
 
     Parameters
@@ -155,9 +156,9 @@ def fitted_travel(operation: str, parameters: dict, window_start_s: float, onset
     breaker : Breaker
     dc_used : float, optional
         The closing's opening-spring factor DC [s^-2].
-    alpha0 : float, optional
-        Buffer engagement [rad] an unknown design's fit estimated (``structure``); else the
-        breaker file's.
+    alpha0, co : float, optional
+        Buffer engagement [rad] and puffer damping CO [s^-1] an unknown design's fit estimated
+        (``structure``); else the breaker file's.
 
     Returns
     -------
@@ -168,10 +169,12 @@ def fitted_travel(operation: str, parameters: dict, window_start_s: float, onset
     t = np.asarray(t, dtype=float) - window_start_s
     if operation == "open":
         x = [parameters[k] for k in ("AO", "BO", "DO", "EO")] + [onset_delay_s]
-        if alpha0 is not None:
+        if alpha0 is not None or co is not None:
             import dataclasses
 
-            breaker = dataclasses.replace(breaker, alpha0=float(alpha0))
+            breaker = dataclasses.replace(
+                breaker, alpha0=float(breaker.alpha0 if alpha0 is None else alpha0),
+                caec=breaker.caec if co is None else float(co) * breaker.J2 / breaker.raec**2)
         theta = OpeningCurves.at(t, x, breaker)
     else:
         x = [parameters[k] for k in ("AC", "BC", "CC")] + [onset_delay_s]

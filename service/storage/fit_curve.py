@@ -22,7 +22,8 @@ def fit_curve(fit, t: np.ndarray, breaker) -> tuple[np.ndarray, np.ndarray] | No
     try:
         structure = (getattr(fit, "result", None) or {}).get("structure") or {}
         fv = fitted_travel(fit.kind, fit.parameters, fit.window_start_s, fit.onset_delay_s, t, breaker,
-                           dc_used=fit.dc_used, alpha0=(structure.get("alpha0") or {}).get("value"))
+                           dc_used=fit.dc_used, alpha0=(structure.get("alpha0") or {}).get("value"),
+                           co=(structure.get("CO") or {}).get("value"))
     except (KeyError, TypeError, ValueError):  # a fit of another model version: nothing to draw
         return None
     return np.asarray(t, float), fv
