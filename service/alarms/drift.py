@@ -245,6 +245,8 @@ class DriftState:
             out[key] = [list(c) for c in out[key]]
         out["excluded_ids"] = list(self.excluded_ids)
         out["model"] = self.model.to_dict() if self.model else None
+        # The summary, for readers of the stored state (retention keeps these operations' captures).
+        out["baseline"] = self.baseline.to_dict() if self.model else None
         out["run_rising"] = list(self.run_rising)
         out["run_falling"] = list(self.run_falling)
         out["held"] = list(self.held) if self.held is not None else None
@@ -259,7 +261,7 @@ class DriftState:
         if data.get("version") != STATE_VERSION:
             raise ValueError(f"drift state version {data.get('version')!r} is not supported "
                              f"(expected {STATE_VERSION}); reset the baseline or replay the history")
-        d = {k: v for k, v in data.items() if k != "version"}
+        d = {k: v for k, v in data.items() if k not in ("version", "baseline")}
         for key in ("collected", "window"):
             d[key] = tuple(tuple(c) for c in d.get(key, ()))
         d["excluded_ids"] = tuple(d.get("excluded_ids", ()))
@@ -325,9 +327,11 @@ def _start_monitoring(state: DriftState, collected: tuple, settings: DriftSettin
                   screen_sigmas=settings.screen_sigmas, screen_min_rel=settings.screen_min_rel,
                   sd_floor_rel=settings.sd_floor_rel)
     window = tuple(c for c, k in zip(collected, keep) if k)
+    model = _model(window, state.parameter, settings)
     return replace(state, phase="monitoring", collected=(), window=window,
                    excluded_ids=tuple(i for i, k in zip(ids, keep) if not k),
-                   model=_model(window, state.parameter, settings))
+                   model=model, frozen=len(collected) >= settings.baseline_max and _frozen(
+                       collected, model, settings))
 
 
 def _frozen(window: tuple, model: Model, settings: DriftSettings) -> bool:
