@@ -36,6 +36,8 @@ LEVELS = ("none", "warning", "alarm")
 STATE_VERSION = 2
 # Plausible temperature of a breaker mechanism [C]: outside this a reading is a sensor fault.
 TEMPERATURE_RANGE_C = (-60.0, 100.0)
+# A temperature this far outside a frozen window's range is new to it [K]: the daily swing.
+NEW_TEMPERATURE_K = 6.0
 
 
 def _utc_text(t: datetime) -> str:
@@ -423,17 +425,28 @@ def update(state: DriftState, obs: FitObservation,
     else:
         to_apply.append((obs.operation_id, u))
 
-    # Learning while quiet: the decision uses only the CUSUM before this fit, which does not
-    # depend on this fit's value, so the window's mean and sd stay unbiased in control; once a
-    # drift lifts the CUSUM, its fits stop entering the baseline.
-    quiet = state.statistic == 0.0 and state.level == "none" and state.held is None
+    # Learning while quiet: the decision uses only the state before this fit, never this fit's
+    # value, so the window stays unbiased in control; once a drift lifts the CUSUM, its fits stop
+    # entering the baseline. A temperature-compensated window also learns the slope, whose error
+    # is shared by consecutive fits: starving it whenever the CUSUM leaves zero would turn a slope
+    # error into an alarm, so it learns while the CUSUM is below the warning level.
+    calm = state.statistic < settings.h_warning if model.compensated else state.statistic == 0.0
+    quiet = calm and state.level == "none" and state.held is None
     window, new_model, frozen = state.window, model, state.frozen
-    if quiet and not frozen:
+    # A frozen compensated window still learns a temperature it has not seen (beyond its range by
+    # more than the daily swing), up to baseline_hard_max: it widens until it spans the seasons.
+    unseen = (model.compensated and obs.temperature is not None
+              and (obs.temperature < model.t_min - NEW_TEMPERATURE_K
+                   or obs.temperature > model.t_max + NEW_TEMPERATURE_K)
+              and len(window) < settings.baseline_hard_max)
+    if quiet and (not frozen or unseen):
         lim = t_for_score(settings.z_cap, model.dof) * band  # Huber-type winsorised update
         value = min(expected + lim, max(expected - lim, obs.value))
         window = window + ((obs.operation_id, value, obs.temperature, obs.se),)
         new_model = _model(window, state.parameter, settings, previous=model)
         frozen = _frozen(window, new_model, settings)
+        if frozen and new_model.ts_n != len(window):  # the model it freezes with: slope refit
+            new_model = _model(window, state.parameter, settings)
 
     s_r, run_r, len_r = state.s_rising, state.run_rising, state.run_length_rising
     s_f, run_f, len_f = state.s_falling, state.run_falling, state.run_length_falling
