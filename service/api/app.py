@@ -129,8 +129,8 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
     from .routes import router
     from .routes_alarms import router as alarm_router
 
+    app.include_router(alarm_router)  # first: its paths never overlap the main router's
     app.include_router(router)
-    app.include_router(alarm_router)
 
     from service.web import mount_web  # the engineers' web page at /
 
