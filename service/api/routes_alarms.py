@@ -16,7 +16,7 @@ from service.storage import crud
 from service.storage.models import BreakerRow
 
 from . import schemas as s
-from .deps import AdminDep, OperatorDep, ReaderDep, SessionDep, SettingsDep, UploaderDep
+from .deps import AdminDep, OperatorDep, ReaderDep, SessionDep, SettingsDep
 
 router = APIRouter(prefix="/api/v1", tags=["alarms"])
 
@@ -205,8 +205,9 @@ def return_to_service(breaker_id: BreakerId, session: SessionDep, settings: Sett
 
 
 @router.put("/breakers/{breaker}/temperature", response_model=TemperatureState, responses=ERRORS)
-def put_temperature(breaker: BreakerRef, body: Temperature, session: SessionDep, who: UploaderDep):
-    """SCADA writes the breaker's temperature (operator or agent key). The latest value applies to
+def put_temperature(breaker: BreakerRef, body: Temperature, session: SessionDep, who: OperatorDep):
+    """SCADA writes the breaker's temperature (operator key; an agent key uploads and nothing
+    else: an agent sends the temperature with the capture). The latest value applies to
     operations that carry no temperature of their own, up to an hour after it was written."""
     from service.storage.crud_alarms import SCADA_TEMPERATURE_MAX_AGE
 
