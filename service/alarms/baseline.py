@@ -53,6 +53,8 @@ class Model:
     t_mean: float | None = None
     t_var: float = 0.0
     t_span: float = 0.0
+    t_min: float = 0.0
+    t_max: float = 0.0
     ts_slope: float | None = None  # the raw Theil-Sen slope [unit/K] and the window size it had
     ts_n: int = 0
 
@@ -146,7 +148,8 @@ def fit_model(values: Sequence[float], temps: Sequence[float | None], ses: Seque
         s2 = max(float(np.var(r, ddof=2)) if n > 2 else s2, floor ** 2)
     return Model(n=n, dof=max(n - 2, 1), centre=float(np.mean(r)), slope=b, slope_var=b_var,
                  sd=math.sqrt(s2), se2_mean=se2, t_mean=float(t.mean()), t_var=float(t.var()),
-                 t_span=float(t.max() - t.min()), ts_slope=ts, ts_n=ts_n)
+                 t_span=float(t.max() - t.min()), t_min=float(t.min()), t_max=float(t.max()),
+                 ts_slope=ts, ts_n=ts_n)
 
 
 def screen(values: Sequence[float], temps: Sequence[float | None], *,

@@ -35,6 +35,8 @@ LEVELS = ("none", "warning", "alarm")
 STATE_VERSION = 2
 # Plausible temperature of a breaker mechanism [C]: outside this a reading is a sensor fault.
 TEMPERATURE_RANGE_C = (-60.0, 100.0)
+# A temperature this far outside a frozen window's range is new to it [K]: the daily swing.
+NEW_TEMPERATURE_K = 6.0
 
 
 def _utc_text(t: datetime) -> str:
@@ -244,6 +246,8 @@ class DriftState:
             out[key] = [list(c) for c in out[key]]
         out["excluded_ids"] = list(self.excluded_ids)
         out["model"] = self.model.to_dict() if self.model else None
+        # The summary, for readers of the stored state (retention keeps these operations' captures).
+        out["baseline"] = self.baseline.to_dict() if self.model else None
         out["run_rising"] = list(self.run_rising)
         out["run_falling"] = list(self.run_falling)
         out["held"] = list(self.held) if self.held is not None else None
@@ -258,7 +262,7 @@ class DriftState:
         if data.get("version") != STATE_VERSION:
             raise ValueError(f"drift state version {data.get('version')!r} is not supported "
                              f"(expected {STATE_VERSION}); reset the baseline or replay the history")
-        d = {k: v for k, v in data.items() if k != "version"}
+        d = {k: v for k, v in data.items() if k not in ("version", "baseline")}
         for key in ("collected", "window"):
             d[key] = tuple(tuple(c) for c in d.get(key, ()))
         d["excluded_ids"] = tuple(d.get("excluded_ids", ()))
@@ -324,9 +328,11 @@ def _start_monitoring(state: DriftState, collected: tuple, settings: DriftSettin
                   screen_sigmas=settings.screen_sigmas, screen_min_rel=settings.screen_min_rel,
                   sd_floor_rel=settings.sd_floor_rel)
     window = tuple(c for c, k in zip(collected, keep) if k)
+    model = _model(window, state.parameter, settings)
     return replace(state, phase="monitoring", collected=(), window=window,
                    excluded_ids=tuple(i for i, k in zip(ids, keep) if not k),
-                   model=_model(window, state.parameter, settings))
+                   model=model, frozen=len(collected) >= settings.baseline_max and _frozen(
+                       collected, model, settings))
 
 
 def _frozen(window: tuple, model: Model, settings: DriftSettings) -> bool:
@@ -418,17 +424,28 @@ def update(state: DriftState, obs: FitObservation,
     else:
         to_apply.append((obs.operation_id, u))
 
-    # Learning while quiet: the decision uses only the CUSUM before this fit, which does not
-    # depend on this fit's value, so the window's mean and sd stay unbiased in control; once a
-    # drift lifts the CUSUM, its fits stop entering the baseline.
-    quiet = state.statistic == 0.0 and state.level == "none" and state.held is None
+    # Learning while quiet: the decision uses only the state before this fit, never this fit's
+    # value, so the window stays unbiased in control; once a drift lifts the CUSUM, its fits stop
+    # entering the baseline. A temperature-compensated window also learns the slope, whose error
+    # is shared by consecutive fits: starving it whenever the CUSUM leaves zero would turn a slope
+    # error into an alarm, so it learns while the CUSUM is below the warning level.
+    calm = state.statistic < settings.h_warning if model.compensated else state.statistic == 0.0
+    quiet = calm and state.level == "none" and state.held is None
     window, new_model, frozen = state.window, model, state.frozen
-    if quiet and not frozen:
+    # A frozen compensated window still learns a temperature it has not seen (beyond its range by
+    # more than the daily swing), up to baseline_hard_max: it widens until it spans the seasons.
+    unseen = (model.compensated and obs.temperature is not None
+              and (obs.temperature < model.t_min - NEW_TEMPERATURE_K
+                   or obs.temperature > model.t_max + NEW_TEMPERATURE_K)
+              and len(window) < settings.baseline_hard_max)
+    if quiet and (not frozen or unseen):
         lim = t_for_score(settings.z_cap, model.dof) * band  # Huber-type winsorised update
         value = min(expected + lim, max(expected - lim, obs.value))
         window = window + ((obs.operation_id, value, obs.temperature, obs.se),)
         new_model = _model(window, state.parameter, settings, previous=model)
         frozen = _frozen(window, new_model, settings)
+        if frozen and new_model.ts_n != len(window):  # the model it freezes with: slope refit
+            new_model = _model(window, state.parameter, settings)
 
     s_r, run_r, len_r = state.s_rising, state.run_rising, state.run_length_rising
     s_f, run_f, len_f = state.s_falling, state.run_falling, state.run_length_falling

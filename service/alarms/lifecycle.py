@@ -1,8 +1,8 @@
 """What operators do to alarms and breakers, as a pure state machine (ISA-18.2 terms).
 
 An alarm is ``raised`` → ``acknowledged`` → ``cleared`` (the detector clears it; an escalation
-makes it unacknowledged again). Orthogonal to that, an active alarm may be **shelved**: hidden
-from annunciation for a stated time, with a reason; it unshelves by itself when the time is up.
+makes it unacknowledged again). Orthogonal to that, an active alarm may be **shelved**: marked
+shelved for a stated time, with a reason; it unshelves by itself when the time is up.
 A breaker may be **out of service** (maintenance): its fits are not watched, and returning it
 to service resets the baseline. Every action returns an ``Action`` for the audit trail.
 

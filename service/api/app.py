@@ -157,8 +157,8 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
     from .routes import router
     from .routes_alarms import router as alarm_router
 
+    app.include_router(alarm_router)  # first: its paths never overlap the main router's
     app.include_router(router)
-    app.include_router(alarm_router)
 
     from .routes_diagnoses import router as diagnoses_router  # breaker-level diagnoses (issue 20)
 

@@ -206,8 +206,8 @@ def return_to_service(breaker_id: BreakerId, session: SessionDep, settings: Sett
 
 @router.put("/breakers/{breaker}/temperature", response_model=TemperatureState, responses=ERRORS)
 def put_temperature(breaker: BreakerRef, body: Temperature, session: SessionDep, who: OperatorDep):
-    """SCADA writes the breaker's temperature (operator key; an agent key only uploads, and its
-    captures carry their own temperature). The latest value applies to
+    """SCADA writes the breaker's temperature (operator key; an agent key uploads and nothing
+    else: an agent sends the temperature with the capture). The latest value applies to
     operations that carry no temperature of their own, up to an hour after it was written."""
     from service.storage.crud_alarms import SCADA_TEMPERATURE_MAX_AGE
 

@@ -65,7 +65,7 @@ class DriftTraces:
         self._lock = Lock()
 
     def trace(self, breaker_id: int, parameter: str, since: datetime | None, ops: list, times: list,
-              values: list, lows: list, highs: list, settings) -> dict:
+              values: list, lows: list, highs: list, settings, temps: list | None = None) -> dict:
         """ops/times/values/lows/highs: the parameter's good fits, oldest first (already filtered
         to identifiable ones after ``since``). Returns {"t", "s", "baseline", "warning", "alarm"}."""
         key = (breaker_id, parameter, since, json.dumps(settings.to_dict(), sort_keys=True))
@@ -78,7 +78,8 @@ class DriftTraces:
                 start, state, out_t, out_s = n, h_state, list(h_t), list(h_s)
         for i in range(start, len(ops)):
             ci = (lows[i], highs[i]) if lows[i] is not None and highs[i] is not None else None
-            obs = drift.FitObservation(operation_id=ops[i], time=times[i], value=values[i], ci95=ci)
+            obs = drift.FitObservation(operation_id=ops[i], time=times[i], value=values[i], ci95=ci,
+                                       temperature=temps[i] if temps else None)
             try:
                 state, _ = drift.update(state, obs, settings)
             except ValueError:  # out-of-order fit: the detector skipped it too
@@ -94,7 +95,8 @@ class DriftTraces:
         b = state.baseline
         return {"t": out_t, "s": out_s, "warning": settings.h_warning, "alarm": settings.h_alarm,
                 "baseline": None if b is None else {"mean": b.mean, "sd": b.sd, "n": b.n},
-                "collected": len(state.collected), "baseline_n": settings.baseline_n}
+                "collected": len(state.collected), "baseline_n": settings.baseline_n,
+                "temperature_compensated": state.compensated}
 
 
 def characteristics_series(rows: list[tuple]) -> dict:

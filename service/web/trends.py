@@ -135,9 +135,12 @@ class TrendStore:
             drift = None
             if name in ds.watched:
                 keep = [i for i, ok in enumerate(c.ident) if ok and (reset_at is None or c.t[i] >= reset_at)]
+                from service.storage.crud_alarms import operation_temperatures
+
+                temps = operation_temperatures(session, [c.op[i] for i in keep])
                 tr = self.drift.trace(breaker.id, name, reset_at, [c.op[i] for i in keep], [c.t[i] for i in keep],
                                       [c.value[i] for i in keep], [c.lo[i] for i in keep],
-                                      [c.hi[i] for i in keep], ds)
+                                      [c.hi[i] for i in keep], ds, temps=[temps.get(c.op[i]) for i in keep])
                 idx = minmax_indices(tr["s"], self.buckets)
                 drift = {**tr, "t": [tr["t"][i] for i in idx], "s": [tr["s"][i] for i in idx], "n": len(tr["t"])}
             op_time = dict(zip(c.op, c.te))

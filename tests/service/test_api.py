@@ -31,7 +31,12 @@ def _ingest(env, breaker, kind="open", seed=0, **kw):
 
 # -- auth ----------------------------------------------------------------------------------------
 OPERATOR_ROUTES = {("POST", "/api/v1/breakers/{breaker_id}/captures"), ("POST", "/api/v1/alarms/{alarm_id}/ack")}
-ADMIN_ROUTES = {("POST", "/api/v1/breakers"), ("POST", "/api/v1/breakers/{breaker_id}/baseline/reset"),
+# the alarm lifecycle and SCADA temperature (service/api/routes_alarms.py)
+OPERATOR_ROUTES |= {("POST", "/api/v1/alarms/{alarm_id}/shelve"), ("POST", "/api/v1/alarms/{alarm_id}/unshelve"),
+                    ("POST", "/api/v1/breakers/{breaker_id}/out-of-service"),
+                    ("PUT", "/api/v1/breakers/{breaker}/temperature")}
+ADMIN_ROUTES = {("POST", "/api/v1/breakers/{breaker_id}/return-to-service"),
+                ("POST", "/api/v1/breakers"), ("POST", "/api/v1/breakers/{breaker_id}/baseline/reset"),
                 ("GET", "/api/v1/keys"), ("POST", "/api/v1/keys"), ("DELETE", "/api/v1/keys/{key_id}"),
                 ("POST", "/api/v1/refits"), ("GET", "/api/v1/refits"), ("GET", "/api/v1/refits/{run_id}")}
 

@@ -74,7 +74,7 @@ def test_trend_store_extends_exactly_like_a_rebuild(env):
     _store_fits(env, 30, 0)
     first = _body(store, env)
     assert first["params"]["DO"]["n"] == 30 and first["params"]["DO"]["shown"] < 30
-    assert first["params"]["DO"]["drift"]["baseline"]["n"] == 20  # the detector's baseline
+    assert 20 <= first["params"]["DO"]["drift"]["baseline"]["n"] <= 30  # the first 20 fits, and those learnt while quiet
     _store_fits(env, 12, 30, do_scale=0.9)  # a leak: the drift statistic climbs
     grown = _body(store, env)
     assert grown == _body(TrendStore(buckets=8), env)  # incremental == rebuilt from scratch

@@ -13,7 +13,9 @@ from service.storage import crud
 from service.storage.spool import write_capture_file
 
 BREAKER_FILE = Path(__file__).resolve().parents[2] / "config" / "breakers" / "reference-252kV.toml"
-ALARMS = {"baseline_n": 12, "watched": {"DO": "falling"}}
+# baseline_max = baseline_n: a frozen 12-fit baseline, so the retention tests know which captures
+# a baseline protects (a learning window would protect every quiet fit up to baseline_max).
+ALARMS = {"baseline_n": 12, "baseline_max": 12, "watched": {"DO": "falling"}}
 
 
 def synth_captures():
