@@ -26,6 +26,7 @@ from .hypotheses import Fits, n_params, signature
 
 P_NAME = 0.9                 # stated level: an answer is given when its probability reaches it
 P_RIVAL = 0.05               # rivals listed in an ambiguous answer
+P_TRACE = 1e-3               # hypotheses below this are not sized (their answer is their effects)
 MILD = 1.0 / np.sqrt(BLOCK)  # a misfit below σ/√16 (the sd of one block mean) is invisible in any block
 
 
@@ -38,6 +39,9 @@ class Decision:
     mild: list
     absorbed: list
     gap_sigma: float
+    answers: dict = None        # {answer: pooled probability}
+    answer: str = "none"        # the answer whose probability is stated
+    answer_probability: float = 0.0
 
 
 def contribution_sigma(h, fits: Fits, effect: str | None = None) -> float:
@@ -63,29 +67,42 @@ def gap_sigma(chi2: float, n: int) -> float:
 
 
 def decide(fits: Fits, ev: Evidence, catalogue) -> Decision:
+    """The one rule (module docstring). Hypotheses that give the same answer — the same strong
+    effects, their other effects mild — pool their probability: "orifice buffer, plus a trace
+    of Stribeck friction" and "orifice buffer, plus a trace of puffer" both answer orifice."""
     hyps = fits.hypotheses
-    ranked = ev.ranked()
-    top, p_top = ranked[0]
     g0 = gap_sigma(hyps["none"].chi2, ev.n)
     absorbed = absorbed_effects(fits, catalogue, ev.n)
+    answers, best_h, mild_of = {}, {}, {}
+    for name, p in ev.ranked():
+        h = hyps[name]
+        if name in ("none", "outside_catalogue"):
+            a, mild = name, []
+        elif p < P_TRACE:
+            a, mild = "+".join(sorted(h.effects)), []
+        else:
+            size = {e: contribution_sigma(h, fits, e) for e in h.effects}
+            strong = sorted(e for e in h.effects if size[e] >= MILD)
+            a, mild = ("+".join(strong) or "none"), [e for e in h.effects if size[e] < MILD]
+        answers[a] = answers.get(a, 0.0) + p
+        if a not in best_h:
+            best_h[a], mild_of[a] = name, mild
+    ranked = sorted(answers.items(), key=lambda kv: -kv[1])
+    top, p_top = ranked[0]
     rivals = [{"effect": k, "probability": p} for k, p in ranked if p >= P_RIVAL][:4]
     if p_top >= P_NAME:
-        h = hyps[top]
         if top == "none":
-            return Decision("none", top, [], [], [], absorbed, g0)
+            return Decision("none", best_h[top], [], [], mild_of[top], absorbed, g0, answers, top, p_top)
         if top == "outside_catalogue":
             if g0 < MILD:
-                return Decision("none", top, [], [], _mild(fits, ranked), absorbed, g0)
-            return Decision("unexplained", top, [], rivals[1:], [], absorbed, g0)
-        size = {e: contribution_sigma(h, fits, e) for e in h.effects}
-        strong = [e for e in h.effects if size[e] >= MILD]
-        mild = [e for e in h.effects if size[e] < MILD]
-        if not strong:
-            return Decision("none", top, [], [], mild, absorbed, g0)
-        return Decision("named", top, strong, [], mild, absorbed, g0)
+                return Decision("none", best_h[top], [], [], _mild(fits, ev.ranked()), absorbed, g0, answers,
+                                "none", p_top)
+            return Decision("unexplained", best_h[top], [], rivals[1:], [], absorbed, g0, answers, top, p_top)
+        return Decision("named", best_h[top], top.split("+"), [], mild_of[top], absorbed, g0, answers, top, p_top)
     if g0 < MILD:
-        return Decision("none", top, [], [], _mild(fits, ranked), absorbed, g0)
-    return Decision("ambiguous", top, [], rivals, [], absorbed, g0)
+        return Decision("none", "none", [], [], _mild(fits, ev.ranked()), absorbed, g0, answers, "none",
+                        answers.get("none", 0.0))
+    return Decision("ambiguous", best_h[top], [], rivals, [], absorbed, g0, answers, top, p_top)
 
 
 def _mild(fits, ranked):

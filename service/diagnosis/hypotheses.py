@@ -30,13 +30,13 @@ from scipy.optimize import least_squares
 
 from ..prototypes.a import OPERATIONS, REALISTIC, SHAPES, SIGNED, shape_bounds, shape_defaults
 from ..prototypes.a.effects import FIT_UPPER
-from .data import model_curve
+from .data import STATE, model_curve
 from .windows import Windows, linearise
 
 SCREEN_NFEV = 8     # evaluations per deterministic start
 REFINE_NFEV = 12    # evaluations of the best start (the exact refit does the rest)
 RELIN = 0           # re-linearisations of a promising hypothesis (superseded by the exact refit)
-EXACT_NFEV = 20     # evaluations of the exact joint refit
+EXACT_NFEV = 30     # evaluations of the exact joint refit
 EXACT_TOP = 4       # singles refitted exactly: the best by the linearised BIC
 RELIN_NFEV = 12     # evaluations of each re-linearised refit
 PAIR_TOP = 3        # pairs are formed from the best singles (ΔBIC < 0) ...
@@ -218,6 +218,19 @@ def refine_exact(windows: Windows, h: HypothesisFit, *, max_nfev: int = EXACT_NF
     z0 = np.clip(z0, lo, hi)
     res = least_squares(fun, z0, bounds=(lo, hi), x_scale=scale, max_nfev=max_nfev, diff_step=1e-5,
                         jac_sparsity=sp, tr_solver="lsmr")
+    nb = rows[-1]
+    if 2 * res.cost > nb + 5 * np.sqrt(2 * nb):
+        # not at the noise floor: a strong effect can have pushed the reduced states far from
+        # the truth (a contact wipe read as BC −40 %); also start from the breaker's design state
+        design = br.design_parameters()
+        xd = np.array([design[k] for k in STATE[op]])
+        z1 = z0.copy()
+        for i in range(len(caps)):
+            z1[ke + i * p: ke + (i + 1) * p - 1] = xd
+        res1 = least_squares(fun, np.clip(z1, lo, hi), bounds=(lo, hi), x_scale=scale, max_nfev=max_nfev,
+                             diff_step=1e-5, jac_sparsity=sp, tr_solver="lsmr")
+        if res1.cost < res.cost:
+            res = res1
     eff = _unpack(res.x[:ke], effects, sl)
     new_caps, sigs, per = [], [], []
     for i, cw in enumerate(caps):

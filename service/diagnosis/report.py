@@ -75,15 +75,14 @@ def build(fits: Fits, ev: Evidence, dec: Decision, next_meas: list, holdout, run
             from ..prototypes.a import SHAPES
             named.append({"effect": e, "strength": s, "shape": {n[0]: float(v) for n, v in zip(SHAPES[e], sh)},
                           "mild": e in dec.mild})
-    answer = ("outside_catalogue" if dec.hypothesis == "outside_catalogue"
-              else "+".join(sorted(e for e in fits.hypotheses[dec.hypothesis].effects if e not in dec.mild)) or "none")
     probs = dict(sorted(ev.probabilities.items(), key=lambda kv: -kv[1]))
     return {
         "operation": op, "breaker": br.name, "captures": len(caps),
         "sources": [cw.data.source for cw in caps],
         "status": dec.status, "effects": list(dec.effects), "named": named,
         "probabilities": probs, "rivals": dec.rivals, "mild": dec.mild,
-        "answer": answer, "answer_probability": float(ev.probabilities[dec.hypothesis]),
+        "answer": dec.answer, "answer_probability": float(dec.answer_probability),
+        "answers": dict(sorted(dec.answers.items(), key=lambda kv: -kv[1])),
         "absorbed": dec.absorbed, "where": where, "gap": gap,
         "reduced_parameters": reduced, "corrected_parameters": corrected,
         "next_measurement": next_meas,
@@ -103,7 +102,7 @@ def message(dec: Decision, probs, gap, n) -> str:
                     f"{', '.join(dec.mild)}.")
         return f"The reduced model fits {who} to the noise floor ({ratio:.2f}×): no unmodelled effect."
     if dec.status == "named":
-        p = probs[dec.hypothesis]
+        p = dec.answer_probability
         extra = f" ({', '.join(dec.mild)} present but mild)" if dec.mild else ""
         return (f"{' and '.join(dec.effects)}{extra} (probability {p:.2f}) explains the gap over {who}: "
                 f"{gap['before_rms_rad'] * 1e3:.2f} → {gap['after_rms_rad'] * 1e3:.2f} mrad rms.")

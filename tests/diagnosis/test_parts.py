@@ -126,3 +126,13 @@ def test_score_and_calibration():
     c = calibration(rows)
     assert c["stated_ge_0_9"]["n"] == 4
     assert c["stated_ge_0_9"]["fraction_right"] == pytest.approx(3 / 4)
+
+
+def test_measurement_separation():
+    from service.diagnosis.measurement import _separation
+
+    cw = SimpleNamespace(project_out=lambda v: v)
+    a = np.array([1.0, 2.0, 0.0])
+    assert _separation([cw], [a], [3 * a]) == pytest.approx(0.0)          # b rescaled mimics a exactly
+    b = np.array([0.0, 0.0, 2.0])
+    assert _separation([cw], [a], [b]) == pytest.approx(min(5.0, 4.0))    # orthogonal: the smaller one is left
