@@ -47,7 +47,8 @@ def test_contract(wipe):
 def test_contact_wipe_named_jointly(wipe):
     assert wipe["status"] == "named"
     assert wipe["effects"] == ["contact_wipe"]
-    assert wipe["probabilities"]["contact_wipe"] >= 0.9
+    assert wipe["answer"] == "contact_wipe" and wipe["answer_probability"] >= 0.9
+    assert wipe["answers"]["contact_wipe"] == wipe["answer_probability"]
     assert wipe["gap"]["after_rms_rad"] < wipe["gap"]["before_rms_rad"]
     touch = {w["phase"]: w for w in wipe["where"]}["contact_touch"]
     assert touch["gap_after"] < touch["gap_before"]
