@@ -38,7 +38,7 @@ def _diagnose_job(job: dict) -> dict:
     from .diagnose import DiagnosisError, diagnose
 
     breaker = load_reference()
-    caps = [read_capture(str(Path(job["dir"]) / f"{s}.cfg"), travel_channel=breaker.channels["travel"],
+    caps = [read_capture(str(Path(job["dir"]) / (s if s.endswith(".cfg") else f"{s}.cfg")), travel_channel=breaker.channels["travel"],
                          vibration_channel=breaker.channels["vibration"]) for s in job["stems"]]
     t0 = time.process_time()
     try:
@@ -107,31 +107,86 @@ def score(rows) -> dict:
     }
 
 
-def calibration(rows) -> dict:
-    """Stated probability (the most probable hypothesis's) in bins vs the fraction whose answer
-    (that hypothesis, mild effects left out) is the truth."""
+def _right(r, strict: bool) -> bool:
+    """The answer is the truth; not ``strict``: ``none`` is also right when the group's gap is
+    below what matters (decision.MILD) — it says "no effect that matters", and there is none."""
+    from .decision import MILD
+
+    if _answer_name(r) == _truth_name(r["truth"], r["outside"]):
+        return True
+    return (not strict) and _answer_name(r) == "none" and r["gap"]["gap_sigma"] < MILD
+
+
+def calibration(rows, strict: bool = False) -> dict:
+    """Stated probability (of the answer given or leading: the most probable answer, mild
+    effects left out) in bins vs the fraction right (:func:`_right`)."""
     ok = [r for r in rows if "error" not in r]
     out = []
     for lo, hi in zip(BINS[:-1], BINS[1:]):
         sel = [r for r in ok if lo <= r["answer_probability"] < hi]
-        right = [_answer_name(r) == _truth_name(r["truth"], r["outside"]) for r in sel]
         out.append({"stated_from": lo, "stated_to": min(hi, 1.0), "n": len(sel),
                     "mean_stated": float(np.mean([r["answer_probability"] for r in sel])) if sel else None,
-                    "fraction_right": float(np.mean(right)) if sel else None})
+                    "fraction_right": float(np.mean([_right(r, strict) for r in sel])) if sel else None})
     hi_sel = [r for r in ok if r["answer_probability"] >= 0.9]
-    return {"bins": out, "stated_ge_0_9": {"n": len(hi_sel), "fraction_right": float(np.mean(
-        [_answer_name(r) == _truth_name(r["truth"], r["outside"]) for r in hi_sel])) if hi_sel else None}}
+    return {"strict": strict, "bins": out, "stated_ge_0_9": {"n": len(hi_sel), "fraction_right": float(np.mean(
+        [_right(r, strict) for r in hi_sel])) if hi_sel else None}}
+
+
+def summarise(out: Path, rows, meta) -> dict:
+    """Score the diagnosed rows and write the JSON files, the figure and ``gap.md``."""
+    protos = meta["prototypes"]
+    groups = {p: score([r for r in rows if r["prototype"] == p and r["kind"] == "group"]) for p in protos}
+    single = {p: score([r for r in rows if r["prototype"] == p and r["kind"] == "single"]) for p in protos}
+    cal, strict = {}, {}
+    for p in protos + ["pooled"]:
+        mine = [r for r in rows if p == "pooled" or r["prototype"] == p]
+        cal[p] = {k: calibration([r for r in mine if r["kind"] == k]) for k in ("group", "single")}
+        strict[p] = {k: calibration([r for r in mine if r["kind"] == k], True) for k in ("group", "single")}
+    _write(out / "gap_groups.json", {**meta, "per_prototype": groups,
+                                     "rows": [r for r in rows if r["kind"] == "group"]})
+    _write(out / "gap_calibration.json", {**meta, **cal, "strict": strict})
+    _write(out / "gap_single.json", {**meta, "per_prototype": single,
+                                     "rows": [r for r in rows if r["kind"] == "single"]})
+    _plot(out, groups, single)
+    (out / "gap.md").write_text(markdown(groups, single, cal, meta, strict))
+    return {**meta, "groups": groups, "single": single, "calibration": cal}
+
+
+def rescore(out_dir) -> dict:
+    """Score an earlier run again from its saved rows (no diagnosis is rerun)."""
+    out = Path(out_dir)
+    g = json.loads((out / "gap_groups.json").read_text())
+    s1 = json.loads((out / "gap_single.json").read_text())
+    meta = {k: g[k] for k in ("seed", "quick", "sizes", "prototypes", "wall_s")}
+    return summarise(out, g["rows"] + s1["rows"], meta)
+
+
+def _generator(p):
+    """The prototype's group generator: ``service.prototypes.<p>.groups`` or the package itself."""
+    try:
+        return importlib.import_module(f"service.prototypes.{p}.groups")
+    except ModuleNotFoundError:
+        mod = importlib.import_module(f"service.prototypes.{p}")
+        if not hasattr(mod, "write_groups"):
+            raise
+        return mod
 
 
 def available_prototypes():
     out = []
     for p in ("a", "b", "c"):
         try:
-            importlib.import_module(f"service.prototypes.{p}.groups")
+            _generator(p)
             out.append(p)
         except ModuleNotFoundError:
             pass
     return out
+
+
+def _groups_of(d: Path, returned):
+    """The groups of a written manifest (a dict with ``groups`` or a plain list)."""
+    data = json.loads((d / "manifest.json").read_text()) if (d / "manifest.json").exists() else returned
+    return data["groups"] if isinstance(data, dict) else data
 
 
 def run_gap_study(out_dir: Path, *, seed: int = DEFAULT_SEED, quick: bool = False, workers: int = 2,
@@ -146,11 +201,11 @@ def run_gap_study(out_dir: Path, *, seed: int = DEFAULT_SEED, quick: bool = Fals
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     jobs = []
     for p in protos:
-        mod = importlib.import_module(f"service.prototypes.{p}.groups")
+        mod = _generator(p)
         d = out / p
-        manifest = mod.write_groups(d, seed=seed, **sizes)
-        for g in manifest["groups"]:
-            base = {"prototype": p, "dir": str(d), "group": g["group"], "operation": g["operation"],
+        returned = mod.write_groups(d, seed=seed, **sizes)
+        for g in _groups_of(d, returned):
+            base = {"prototype": p, "dir": str(d), "group": g.get("group", g.get("id")), "operation": g["operation"],
                     "truth": sorted(k for k in g["effects"] if not g["outside_catalogue"]),
                     "outside": bool(g["outside_catalogue"])}
             jobs.append({**base, "kind": "group", "stems": g["stems"]})
@@ -158,20 +213,8 @@ def run_gap_study(out_dir: Path, *, seed: int = DEFAULT_SEED, quick: bool = Fals
     t0 = time.perf_counter()
     rows = pool_map(_diagnose_job, jobs, max(1, int(workers)))
     wall = time.perf_counter() - t0
-    groups = {p: score([r for r in rows if r["prototype"] == p and r["kind"] == "group"]) for p in protos}
-    single = {p: score([r for r in rows if r["prototype"] == p and r["kind"] == "single"]) for p in protos}
-    cal = {p: {k: calibration([r for r in rows if r["prototype"] == p and r["kind"] == k])
-               for k in ("group", "single")} for p in protos}
-    cal["pooled"] = {k: calibration([r for r in rows if r["kind"] == k]) for k in ("group", "single")}
     meta = {"seed": seed, "quick": quick, "sizes": sizes, "prototypes": protos, "wall_s": wall}
-    _write(out / "gap_groups.json", {**meta, "per_prototype": groups,
-                                     "rows": [r for r in rows if r["kind"] == "group"]})
-    _write(out / "gap_calibration.json", {**meta, **cal})
-    _write(out / "gap_single.json", {**meta, "per_prototype": single,
-                                     "rows": [r for r in rows if r["kind"] == "single"]})
-    _plot(out, groups, single)
-    (out / "gap.md").write_text(markdown(groups, single, cal, meta))
-    return {**meta, "groups": groups, "single": single, "calibration": cal}
+    return summarise(out, rows, meta)
 
 
 def _write(path, data):
@@ -186,7 +229,7 @@ def _f(x):
     return f"{x['k']}/{x['n']} ({100 * x['fraction']:.0f} %)"
 
 
-def markdown(groups, single, cal, meta) -> str:
+def markdown(groups, single, cal, meta, strict=None) -> str:
     lines = [f"# Gap study (seed {meta['seed']}, sizes {meta['sizes']})", "",
              "| prototype | set | top-1 detectable | top-1 all effect groups | none on healthy | wrong names | "
              "absorbed listed | outside → unexplained | two-effect both |", "|---|---|---|---|---|---|---|---|---|"]
@@ -195,16 +238,21 @@ def markdown(groups, single, cal, meta) -> str:
             lines.append(f"| {p.upper()} | {label} | {_f(s['top1_detectable'])} | {_f(s['top1_all_effect_groups'])} | "
                          f"{_f(s['none_on_healthy'])} | {_f(s['wrong_names'])} | {_f(s['absorbed_listed'])} | "
                          f"{_f(s['outside_unexplained'])} | {_f(s['two_effect_both'])} |")
-    lines += ["", "Calibration (groups): stated probability of the top hypothesis vs fraction right", "",
+    lines += ["", "Calibration: stated probability of the answer vs fraction right (`strict`: `none` is right "
+              "only on healthy breakers; otherwise also when the gap is below MILD)", "",
               "| prototype | " + " | ".join(f"{b['stated_from']:.2f}–{b['stated_to']:.2f}"
                                             for b in cal["pooled"]["group"]["bins"]) + " | stated ≥ 0.9 |",
               "|---|" + "---|" * (len(BINS))]
-    for p in meta["prototypes"] + ["pooled"]:
-        c = cal[p]["group"]
-        cells = [("–" if b["n"] == 0 else f"{b['fraction_right']:.2f} (n={b['n']})") for b in c["bins"]]
-        s9 = c["stated_ge_0_9"]
-        last = "–" if not s9["n"] else f"{s9['fraction_right']:.2f} (n={s9['n']})"
-        lines.append(f"| {p} | " + " | ".join(cells) + f" | {last} |")
+    for kind in ("group", "single"):
+        for label, table in (("", cal), (" strict", strict or {})):
+            for p in meta["prototypes"] + ["pooled"]:
+                if p not in table:
+                    continue
+                c = table[p][kind]
+                cells = [("–" if b["n"] == 0 else f"{b['fraction_right']:.2f} (n={b['n']})") for b in c["bins"]]
+                s9 = c["stated_ge_0_9"]
+                last = "–" if not s9["n"] else f"{s9['fraction_right']:.2f} (n={s9['n']})"
+                lines.append(f"| {p} {kind}{label} | " + " | ".join(cells) + f" | {last} |")
     return "\n".join(lines) + "\n"
 
 
