@@ -49,7 +49,9 @@ def next_measurement(fits: Fits, rivals: list) -> list:
     op, br, caps = w.operation, w.breaker, w.captures
     N = len(caps)
     out = []
-    sa, sb = ha.signatures, hb.signatures
+    # every proposal is predicted at the same (reduced) states, so that they compare
+    sa = [signature(cw, op, br, ha.as_effects()) for cw in caps]
+    sb = [signature(cw, op, br, hb.as_effects()) for cw in caps]
     out.append({"measurement": f"{MORE} more {op} operations under the same conditions",
                 "expected_delta_bic": MORE / N * _separation(caps, sa, sb), "separates": [names[0], names[1]]})
     for cond, change in CONDITIONS.items():
