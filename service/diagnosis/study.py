@@ -157,7 +157,7 @@ def rescore(out_dir) -> dict:
     out = Path(out_dir)
     g = json.loads((out / "gap_groups.json").read_text())
     s1 = json.loads((out / "gap_single.json").read_text())
-    meta = {k: g[k] for k in ("seed", "quick", "sizes", "prototypes", "wall_s")}
+    meta = {k: g.get(k) for k in ("seed", "quick", "sizes", "prototypes", "wall_s", "complete")}
     return summarise(out, g["rows"] + s1["rows"], meta)
 
 
@@ -211,10 +211,17 @@ def run_gap_study(out_dir: Path, *, seed: int = DEFAULT_SEED, quick: bool = Fals
             jobs.append({**base, "kind": "group", "stems": g["stems"]})
             jobs.append({**base, "kind": "single", "stems": g["stems"][:1]})
     t0 = time.perf_counter()
-    rows = pool_map(_diagnose_job, jobs, max(1, int(workers)))
-    wall = time.perf_counter() - t0
-    meta = {"seed": seed, "quick": quick, "sizes": sizes, "prototypes": protos, "wall_s": wall}
-    return summarise(out, rows, meta)
+    rows, result = [], None
+    # groups first, then single captures, prototype by prototype: the files are rewritten after
+    # each batch, so a long run that is stopped keeps what it has finished
+    for kind in ("group", "single"):
+        for p in protos:
+            batch = [j for j in jobs if j["kind"] == kind and j["prototype"] == p]
+            rows += pool_map(_diagnose_job, batch, max(1, int(workers)))
+            meta = {"seed": seed, "quick": quick, "sizes": sizes, "prototypes": protos,
+                    "wall_s": time.perf_counter() - t0, "complete": kind == "single" and p == protos[-1]}
+            result = summarise(out, rows, meta)
+    return result
 
 
 def _write(path, data):
