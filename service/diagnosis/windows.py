@@ -76,7 +76,9 @@ def prepare(captures, breaker: Breaker, operation: str, *, fitter=None, seed: in
         try:
             fr = fitter(cap, breaker, operation, seed=seed)
         except ValueError as exc:
-            raise DiagnosisError(f"{cap.source or 'capture'}: {exc}") from None
+            msg = str(exc)
+            name = cap.source or "capture"
+            raise DiagnosisError(msg if msg.startswith(name) else f"{name}: {msg}") from None
         data = window_data(cap, fr, breaker, operation)
         if data.t.size < 20:
             raise DiagnosisError(f"{data.source}: the valid window holds only {data.t.size} blocks "
