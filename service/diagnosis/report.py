@@ -89,6 +89,10 @@ def build(fits: Fits, ev: Evidence, dec: Decision, next_meas: list, holdout, run
         "holdout_shrink": holdout,
         "bic": ev.bic, "dispersion": ev.dispersion, "blocks": ev.n,
         "message": message(dec, probs, gap, len(caps)),
+        # issue-11 keys kept for the operation page until it moves to the keys above
+        "verdict": "+".join(dec.effects) if dec.status == "named" else dec.status,
+        "candidates": [{"effect": k, "probability": p} for k, p in list(probs.items())[:6]],
+        "how_far": None,
         "runtime_s": float(runtime_s),
     }
 
