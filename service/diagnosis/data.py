@@ -1,5 +1,6 @@
-"""A capture's valid window as the diagnosis sees it: block-averaged samples, the noise floor,
-and the model curve (prototype, fast integrator) at those samples."""
+"""Stage 1 helpers: a capture's valid window as the diagnosis sees it (block-averaged samples,
+the noise floor) and the model curve (prototype A's compiled integrator, any set of effects)
+at those samples."""
 
 from __future__ import annotations
 
@@ -9,10 +10,12 @@ import numpy as np
 
 from ..mechanics.breaker import Breaker
 from ..mechanics.coordinates import operation_coordinate
-from ..prototypes.a import simulate_family
+from ..prototypes.a import EFFECT_NAMES, effect_vector
+from ..prototypes.a.sensor_nonlinearity import sensor_reading
+from ..prototypes.a.simulate import _fast, closing_constants, opening_constants
 
-BLOCK = 16               # samples per block (128 kHz -> 8 kHz)
-FIT_DT = 1.0 / 16_000    # RK4 step inside the fits [s]; validated against exact in tests
+BLOCK = 16               # samples per block (128 kHz -> 8 kHz): the noise of a block mean is σ/4
+FIT_DT = 1.0 / 16_000    # RK4 step inside the fits [s]; validated against exact in tests/prototype
 STATE = {"open": ("AO", "BO", "DO", "EO"), "close": ("AC", "BC", "CC")}
 
 
@@ -33,6 +36,11 @@ class WindowData:
     dc: float
     source: str
 
+    @property
+    def weight(self) -> np.ndarray:
+        """Per block 1/sd of the block mean [1/rad]: √count/σ."""
+        return np.sqrt(self.count) / self.noise
+
 
 def window_data(capture, fit, breaker: Breaker, operation: str) -> WindowData:
     """Cut the fit's valid window out of ``capture`` and block-average it."""
@@ -49,11 +57,48 @@ def window_data(capture, fit, breaker: Breaker, operation: str) -> WindowData:
                       capture.source or "capture")
 
 
-def model_curve(x, data: WindowData, breaker: Breaker, operation: str, effect: str | None,
-                strength: float = 0.0, t=None, shape=None):
+def simulate_effects(operation: str, params: dict, t, breaker: Breaker, effects=(), *,
+                     dt_max: float = FIT_DT, sensor_side: bool = False):
+    """Operation coordinate [rad] at ``t`` [s since motion onset, ≥ 0] with any set of effects.
+
+    ``effects``: sequence of (name, strength, shape or None); ``sensor_side`` True reads a
+    contact-side sensor (the rod's contact mass) for ``rod_elasticity``. Returns (theta, ok).
+    """
+    names = STATE[operation] + (("DC",) if operation == "close" else ())
+    p = np.array([float(params[k]) for k in names])
+    strengths = np.zeros(len(EFFECT_NAMES))
+    shapes = {}
+    for name, s, sh in effects:
+        strengths[EFFECT_NAMES.index(name)] = s
+        if sh is not None:
+            shapes[name] = np.array(sh, float)
+    if sensor_side and "rod_elasticity" in shapes:
+        shapes["rod_elasticity"] = shapes["rod_elasticity"].copy()
+        shapes["rod_elasticity"][1] = 1.0
+    e = effect_vector(strengths, shapes or None)
+    if not np.all(np.isfinite(p)) or p[0 if operation == "open" else 1] <= 0:
+        return np.full_like(t, np.nan), False
+    if operation == "open":
+        theta, _, _ = _fast(0, np.zeros(4), p, e, opening_constants(breaker), None, t, dt_max)
+    else:
+        c = closing_constants(breaker)
+        x0 = np.array([c[3], 0.0, float(breaker.cam.theta2[0]), 0.0])
+        theta, _, _ = _fast(1, x0, p, e, c, breaker.cam, t, dt_max)
+    for name, s, sh in effects:
+        if name == "sensor_nonlinearity" and s != 0.0:
+            k = len(EFFECT_NAMES) + 3 * EFFECT_NAMES.index(name)
+            pw, g = e[k], e[k + 1]
+            if operation == "open":
+                theta = sensor_reading(theta, s, breaker.stroke, pw, g)
+            else:
+                theta = breaker.stroke - sensor_reading(breaker.stroke - theta, s, breaker.stroke, pw, g)
+    return theta, bool(np.all(np.isfinite(theta)))
+
+
+def model_curve(x, data: WindowData, breaker: Breaker, operation: str, effects=(), t=None,
+                sensor_side: bool = False):
     """Operation coordinate [rad] of the prototype at block centres (or ``t`` [s from the
-    window start]); ``x`` = state parameters followed by the onset delay τ [s]; ``shape``: the
-    effect's family shape parameters (the prototype's defaults when None)."""
+    window start]); ``x`` = state parameters followed by the onset delay τ [s]."""
     names = STATE[operation]
     params = dict(zip(names, x[: len(names)]))
     tau = x[len(names)]
@@ -63,16 +108,9 @@ def model_curve(x, data: WindowData, breaker: Breaker, operation: str, effect: s
         rest = float(breaker.cam.theta2[0])
     else:
         rest = 0.0
-    tr = simulate_family(operation, params, np.maximum(tt, 0.0), breaker=breaker, effect=effect,
-                         strength=strength if effect else 0.0, shape=shape, dt_max=FIT_DT)
-    return np.where(tt < 0, rest, tr.theta), tr
-
-
-def block_residual(x, data, breaker, operation, effect=None, strength=0.0, shape=None):
-    """Residual in noise units per block: (y − model)·√count / σ."""
-    m, _ = model_curve(x, data, breaker, operation, effect, strength, shape=shape)
-    r = (data.y - m) * np.sqrt(data.count) / data.noise
-    return np.where(np.isfinite(r), r, 1e3)
+    theta, _ = simulate_effects(operation, params, np.maximum(tt, 0.0), breaker, effects,
+                                sensor_side=sensor_side)
+    return np.where(tt < 0, rest, theta)
 
 
 def gap_rms(d, count, noise):

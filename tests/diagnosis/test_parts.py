@@ -1,69 +1,138 @@
-"""Pieces of the diagnosis: the fit-grade integrator, phases and residual statistics."""
+"""Pure parts of the pipeline: the evidence's priors, the decision's size rule, the CLI's
+capture expansion, the group generators' interface, the study's scoring."""
+
+import json
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from service.diagnosis.data import FIT_DT
-from service.diagnosis.phases import phase_bounds
-from service.mechanics.opening import simulate_opening
-from service.prototypes.a import REALISTIC, Effects, make_prototype_simulator, simulate_prototype_opening
+from service.diagnosis.commands import expand
+from service.diagnosis.decision import MILD, gap_sigma
+from service.diagnosis.errors import DiagnosisError
+from service.diagnosis.evidence import evidence
+from service.diagnosis.hypotheses import HypothesisFit, spline_basis
+from service.diagnosis.study import calibration, score
 
 
-@pytest.mark.parametrize("name", ["orifice_buffer", "rod_elasticity", "stribeck_friction"])
-def test_fit_step_is_accurate_enough(breaker, name):
-    """The diagnosis integrates at FIT_DT; against the exact reference it errs far below noise."""
-    t = np.arange(0, 0.07, 1 / 8000)
-    p = breaker.design_parameters()
-    eff = Effects.only(name, REALISTIC[name])
-    exact = make_prototype_simulator(breaker, eff, "open")(p, t)
-    fast = simulate_prototype_opening(p, t, breaker=breaker, effects=eff, method="fast", dt_max=FIT_DT)
-    valid = t < exact.t_peak
-    assert np.max(np.abs(exact.theta - fast.theta)[valid]) < 1e-4  # noise floor 1.5e-3 rad
+def _fits(chi, spread=None):
+    """Fake fits: each hypothesis's residual spreads its χ² evenly over 500 blocks (or puts
+    it all in the first 32 blocks when named in ``spread``)."""
+    caps = [SimpleNamespace(J=np.zeros((500, 5)))]
+    hyps = {}
+    for name, (c, k) in chi.items():
+        eff = () if name in ("none",) else tuple(name.split("+")) if name != "outside_catalogue" else ("x",)
+        e = np.full(500, np.sqrt(c / 500))
+        if spread and name in spread:
+            e = np.full(500, np.sqrt(spread[name] / 500))
+            e[:32] = np.sqrt((e[:32] ** 2) + (c - spread[name]) / 32)
+        hyps[name] = HypothesisFit(eff, {}, k, c, [c], outside=name == "outside_catalogue", resid=[e])
+    return SimpleNamespace(windows=SimpleNamespace(n=500, captures=caps), hypotheses=hyps)
 
 
-def test_opening_phases_split_at_alpha0(breaker):
-    p = breaker.design_parameters()
-    t = np.arange(0, 0.06, 1e-5)
-    tr = simulate_opening(p, t, CO=breaker.CO, alpha0=breaker.alpha0)
-    b = phase_bounds("open", t, tr.theta, tr.t_peak, breaker)
-    assert [x[0] for x in b] == ["acceleration", "buffer_engagement", "buffer_stroke", "approach"]
-    assert abs(b[0][2] - tr.events["buffer_engaged"]) < 2e-5
-    assert b[-1][2] == pytest.approx(tr.t_peak)
-    assert all(x[1] <= x[2] for x in b)
+def test_evidence_priors_and_bic():
+    f = _fits({"none": (520.0, 0), "a": (480.0, 2), "b": (500.0, 2), "a+b": (478.0, 4),
+               "outside_catalogue": (470.0, 10)})
+    ev = evidence(f)
+    assert sum(ev.probabilities.values()) == pytest.approx(1.0)
+    assert ev.prior["a+b"] == pytest.approx(ev.prior["a"] / 2)     # pair: 1/F of a single (F = 2)
+    assert ev.prior["none"] == ev.prior["a"] == ev.prior["outside_catalogue"]
+    # evidence spread evenly over the units: the bootstrap leaves the BIC odds nearly unchanged
+    # (the last unit is shorter, which adds a little spread): a beats none by Δχ² 40 − 2 ln 500
+    # = 27.6 → ln odds 13.8
+    odds = ev.probabilities["a"] / ev.probabilities["none"]
+    assert np.log(odds) == pytest.approx(0.5 * (40 - 2 * np.log(500)), rel=0.02)
 
 
-def test_cam_friction_is_absorbed_into_bc(breaker, make_capture):
-    """Cam friction is exactly BC → BC/η: the identifiability check (projection + polish)
-    finds it absorbed, with a BC bias of the sign and size of 1/η − 1 (+11 %; the closing's
-    AC/BC/CC/τ are nearly degenerate, so the bias is only defined to a few per cent)."""
-    from service.diagnosis.data import STATE, window_data
-    from service.diagnosis.identifiability import absorption
-    from service.estimation import fit_capture
-
-    cap = make_capture(breaker, "close", seed=141)
-    fr = fit_capture(cap, breaker, "close", seed=1)
-    d = window_data(cap, fr, breaker, "close")
-    x = np.array([fr.parameters[k] for k in STATE["close"]] + [fr.onset_delay_s])
-    a = absorption("cam_friction", x, d, breaker, "close")
-    assert not a["distinguishable"]
-    assert a["residual_rad"] < 0.3 * d.noise
-    assert 4 < a["parameter_shift"]["BC"] < 20
+def test_evidence_from_one_unit_is_tempered():
+    chi = {"none": (520.0, 0), "a": (480.0, 2), "outside_catalogue": (470.0, 10)}
+    even = evidence(_fits(chi))
+    local = evidence(_fits(chi, spread={"none": 480.0}))     # none's excess all in one 4 ms unit
+    assert local.probabilities["a"] < even.probabilities["a"]
+    assert local.probabilities["a"] > 0.5
 
 
-def test_cam_friction_is_absorbed_exactly_through_its_declared_equivalence(breaker):
-    """cam_friction is BC -> BC/η: the absorption check must find a residual at noise level."""
-    import numpy as np
+def test_dispersion_tempers_a_misspecified_fit():
+    f = _fits({"none": (2000.0, 0), "a": (1500.0, 2), "outside_catalogue": (1000.0, 10)})
+    ev = evidence(f)
+    assert ev.dispersion == pytest.approx(1000.0 / (500 - 5 - 10))
 
-    from service.diagnosis.identifiability import EXACT_EQUIVALENCE
-    from service.mechanics.closing import simulate_closing
-    from service.prototypes.a import REALISTIC, Effects, make_prototype_simulator
 
-    p = breaker.design_parameters()
-    s = REALISTIC["cam_friction"]
-    t = np.arange(0, 0.05, 1 / 128000)
-    proto = make_prototype_simulator(breaker, Effects(cam_friction=s), "close", method="exact")(p, t)
-    x = np.array([p["AC"], p["BC"], p["CC"], 0.0])
-    y = EXACT_EQUIVALENCE["cam_friction"](x, s, "close")
-    reduced = simulate_closing(dict(p, AC=y[0], BC=y[1], CC=y[2]), t, cam=breaker.cam,
-                               geometry=breaker.closing_geometry)
-    assert np.max(np.abs(proto.theta - reduced.theta)) < 1e-5
+def test_size_rule():
+    assert gap_sigma(500.0, 500) == 0.0
+    # a misfit of exactly one block-mean sd per sample: χ²/n = 1 + 16·(1/16)
+    assert gap_sigma(1000.0, 500) == pytest.approx(MILD)
+
+
+def test_spline_basis_partition_of_unity():
+    B = spline_basis(np.linspace(0.0, 0.05, 300))
+    assert B.shape == (300, 8)
+    assert np.allclose(B.sum(axis=1), 1.0)
+
+
+def test_expand_dir_glob_and_errors(tmp_path):
+    for n in ("b.cfg", "a.cfg", "a.dat", "notes.txt"):
+        (tmp_path / n).write_text("x")
+    assert expand([str(tmp_path)]) == [str(tmp_path / "a.cfg"), str(tmp_path / "b.cfg")]
+    assert expand([str(tmp_path / "*.cfg")]) == [str(tmp_path / "a.cfg"), str(tmp_path / "b.cfg")]
+    with pytest.raises(DiagnosisError, match="matches no capture"):
+        expand([str(tmp_path / "*.cff")])
+    with pytest.raises(DiagnosisError, match="no such file"):
+        expand([str(tmp_path / "missing.cfg")])
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(DiagnosisError, match="holds no capture"):
+        expand([str(tmp_path / "empty")])
+
+
+@pytest.mark.parametrize("proto", ["a", "b"])
+def test_group_generators_interface(proto, tmp_path):
+    import importlib
+    g = importlib.import_module(f"service.prototypes.{proto}.groups")
+    rng = np.random.default_rng(7)
+    c = g.draw_conditions(rng)
+    assert set(c) == {"friction", "buffer_damping", "puffer", "spring_charge", "temperature_c"}
+    assert 0.85 <= c["friction"] <= 1.15 and 0.85 <= c["buffer_damping"] <= 1.20
+    assert 0.9 <= c["puffer"] <= 1.1 and 0.99 <= c["spring_charge"] <= 1.01
+    m = g.write_groups(tmp_path, seed=3, per_effect=0, controls=1, two_effect=0, outside=1, captures_per_group=2)
+    assert [gr["outside_catalogue"] for gr in m["groups"]] == [False, True]
+    for gr in m["groups"]:
+        assert set(gr) >= {"group", "operation", "effects", "outside_catalogue", "stems", "truths"}
+        assert len(gr["stems"]) == 2 and all((tmp_path / f"{s}.cfg").exists() for s in gr["stems"])
+        conds = [t["conditions"] for t in gr["truths"]]
+        assert conds[0] != conds[1]                       # conditions vary per capture
+    assert json.loads((tmp_path / "manifest.json").read_text())["groups"][0]["effects"] == {}
+
+
+def _row(truth, status, effects, probs, outside=False, gap=1.0, rivals=(), absorbed=()):
+    top = max(probs, key=probs.get)
+    return {"truth": truth, "status": status, "effects": effects, "probabilities": probs, "outside": outside,
+            "gap": {"gap_sigma": gap}, "rivals": list(rivals), "absorbed": list(absorbed), "cpu_s": 1.0,
+            "answer": top, "answer_probability": probs[top]}
+
+
+def test_score_and_calibration():
+    rows = [_row(["x"], "named", ["x"], {"x": 0.95, "none": 0.05}),
+            _row(["x"], "named", ["y"], {"y": 0.92, "x": 0.08}),
+            _row([], "none", [], {"none": 0.97, "x": 0.03}),
+            _row(["x", "y"], "ambiguous", [], {"x": 0.5, "x+y": 0.4, "none": 0.1},
+                 rivals=[{"effect": "x", "probability": 0.5}, {"effect": "x+y", "probability": 0.4}]),
+            _row([], "unexplained", [], {"outside_catalogue": 0.99, "none": 0.01}, outside=True)]
+    s = score(rows)
+    assert s["top1_detectable"]["k"] == 1 and s["top1_detectable"]["n"] == 2
+    assert s["wrong_names"]["k"] == 1 and s["wrong_names"]["n"] == 5
+    assert s["none_on_healthy"]["fraction"] == 1.0
+    assert s["two_effect_both"]["k"] == 1
+    assert s["outside_unexplained"]["k"] == 1
+    c = calibration(rows)
+    assert c["stated_ge_0_9"]["n"] == 4
+    assert c["stated_ge_0_9"]["fraction_right"] == pytest.approx(3 / 4)
+
+
+def test_measurement_separation():
+    from service.diagnosis.measurement import _separation
+
+    cw = SimpleNamespace(project_out=lambda v: v)
+    a = np.array([1.0, 2.0, 0.0])
+    assert _separation([cw], [a], [3 * a]) == pytest.approx(0.0)          # b rescaled mimics a exactly
+    b = np.array([0.0, 0.0, 2.0])
+    assert _separation([cw], [a], [b]) == pytest.approx(min(5.0, 4.0))    # orthogonal: the smaller one is left

@@ -1,0 +1,165 @@
+"""Stage 1 — the captures' data: per capture the valid window (block means), its noise floor,
+the reduced model's polished state, the whitened residual and the state Jacobian.
+
+Noise: per capture, σ_i is the fitter's pre-trigger standard deviation of the travel (the
+sensor at rest before the latch releases, ~2500 samples: its relative standard error is ~1.4 %).
+A block mean of c samples then has sd σ_i/√c; every residual below is divided by it, so a
+model that fits leaves N(0, 1) values and −2 ln L = χ² (the joint likelihood is the product
+over captures and blocks).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.ndimage import uniform_filter1d
+from scipy.optimize import least_squares
+from scipy.stats import chi2
+
+from ..mechanics.breaker import Breaker
+from ..mechanics.coordinates import operation_coordinate
+from .data import STATE, WindowData, model_curve, window_data
+from .errors import DiagnosisError
+
+BASE_NFEV = 30      # polish of the reduced model (least_squares evaluations)
+GAP_P = 1e-3        # a baseline whose χ² is this improbable is also polished from the design state
+JAC_STEP = 1e-4     # relative finite-difference step of the state Jacobian
+
+
+@dataclass
+class CaptureWindow:
+    """One capture as the later stages see it.
+
+    data : WindowData; x : reduced state then τ [s]; r : whitened residual (y − model)·w;
+    J : whitened state Jacobian ∂model/∂x·w (n × p); Q : orthonormal basis of J's columns.
+    """
+
+    data: WindowData
+    x: np.ndarray
+    r: np.ndarray
+    J: np.ndarray
+    Q: np.ndarray
+
+    def project_out(self, v: np.ndarray) -> np.ndarray:
+        """The part of ``v`` the capture's own state (and τ) cannot absorb."""
+        return v - self.Q @ (self.Q.T @ v)
+
+    def state_step(self, v: np.ndarray) -> np.ndarray:
+        """The linear state change that absorbs the most of ``v`` (least squares)."""
+        return np.linalg.lstsq(self.J, v, rcond=None)[0]
+
+
+@dataclass
+class Windows:
+    """Stage 1 result: the captures of one breaker and one operation."""
+
+    operation: str
+    breaker: Breaker
+    captures: list
+
+    @property
+    def n(self) -> int:
+        return int(sum(c.r.size for c in self.captures))
+
+
+def prepare(captures, breaker: Breaker, operation: str, *, fitter=None, seed: int = 1) -> Windows:
+    """Fit the reduced model to each capture and cut its window (see the module docstring)."""
+    if operation not in ("open", "close"):
+        raise DiagnosisError(f"operation must be 'open' or 'close', got {operation!r}")
+    if not captures:
+        raise DiagnosisError("no capture given")
+    if fitter is None:
+        from ..estimation import fit_capture as fitter
+    out = []
+    for cap in captures:
+        check_breaker(cap, breaker, operation)
+        try:
+            fr = fitter(cap, breaker, operation, seed=seed)
+        except ValueError as exc:
+            msg = str(exc)
+            name = cap.source or "capture"
+            raise DiagnosisError(msg if msg.startswith(name) else f"{name}: {msg}") from None
+        data = window_data(cap, fr, breaker, operation)
+        if data.t.size < 20:
+            raise DiagnosisError(f"{data.source}: the valid window holds only {data.t.size} blocks "
+                                 f"of {16} samples: too short to diagnose")
+        x0 = np.array([fr.parameters[k] for k in STATE[operation]] + [fr.onset_delay_s])
+        x = baseline(x0, data, breaker, operation)
+        out.append(linearise(x, data, breaker, operation))
+    return Windows(operation, breaker, out)
+
+
+def linearise(x, data: WindowData, breaker: Breaker, operation: str) -> CaptureWindow:
+    w = data.weight
+    m0 = model_curve(x, data, breaker, operation)
+    r = (data.y - m0) * w
+    cols = []
+    for j in range(x.size):
+        h = 2e-6 if j == x.size - 1 else JAC_STEP * max(abs(x[j]), 1e-6)
+        xp = x.copy()
+        xp[j] += h
+        cols.append((model_curve(xp, data, breaker, operation) - m0) * w / h)
+    J = np.column_stack(cols)
+    J = np.where(np.isfinite(J), J, 0.0)
+    Q, _ = np.linalg.qr(J)
+    return CaptureWindow(data, np.asarray(x, float), np.where(np.isfinite(r), r, 0.0), J, Q)
+
+
+def _bounds(x0):
+    lo = np.asarray(x0, float) * 0.2
+    hi = np.asarray(x0, float) * 5.0
+    lo[-1], hi[-1] = -2e-3, 5e-3
+    return lo, hi
+
+
+def _residual(x, data, breaker, operation):
+    r = (data.y - model_curve(x, data, breaker, operation)) * data.weight
+    return np.where(np.isfinite(r), r, 1e3)
+
+
+def fit_reduced(x0, data, breaker, operation, max_nfev=BASE_NFEV):
+    """Polish the reduced model (state and τ) on the blocks, from ``x0``."""
+    lo, hi = _bounds(x0)
+    scale = np.maximum(np.abs(x0), 1e-6)
+    scale[-1] = 1e-4
+    res = least_squares(lambda x: _residual(x, data, breaker, operation), np.clip(x0, lo, hi),
+                        bounds=(lo, hi), x_scale=scale, max_nfev=max_nfev, diff_step=1e-6)
+    return res.x, float(np.sum(res.fun ** 2))
+
+
+def baseline(x0, data, breaker, operation):
+    """The reduced fit polished from the estimator's solution and, when that leaves an
+    improbable χ², also from the breaker's design state (τ from a coarse scan): the lower χ²
+    wins. A baseline trapped in a wrong basin is otherwise a spurious gap."""
+    x, cost = fit_reduced(x0, data, breaker, operation)
+    if chi2.sf(cost, data.t.size) >= GAP_P:
+        return x
+    design = breaker.design_parameters()
+    xd = np.array([design[k] for k in STATE[operation]] + [0.0])
+    taus = np.linspace(-1.5e-3, 4.5e-3, 25)
+    costs = []
+    for tau in taus:
+        xd[-1] = tau
+        costs.append(float(np.sum(_residual(xd, data, breaker, operation) ** 2)))
+    xd[-1] = taus[int(np.argmin(costs))]
+    alt, alt_cost = fit_reduced(xd, data, breaker, operation)
+    return alt if alt_cost < cost else x
+
+
+def check_breaker(cap, breaker, operation):
+    """A capture whose stroke is not the breaker's comes from another breaker (or channel)."""
+    y = operation_coordinate(np.asarray(cap.travel, float), operation, breaker.stroke)
+    n = max(int(0.002 * cap.sample_rate), 4)
+    if y.size < 4 * n:
+        raise DiagnosisError(f"{cap.source or 'capture'}: only {y.size} samples: too short to diagnose")
+    head = float(np.median(y[:n]))
+    peak = float(np.max(uniform_filter1d(y, n, mode="nearest")))  # the one moving average
+    span = peak - head
+    if span < 0.1 * breaker.stroke:
+        raise DiagnosisError(f"{cap.source or 'capture'}: the travel does not move (span {span:.3f} rad): "
+                             f"no {operation} operation in this capture?")
+    if not 0.75 * breaker.stroke <= span <= 1.35 * breaker.stroke:
+        raise DiagnosisError(
+            f"{cap.source or 'capture'}: the travel moves {span:.3f} rad but breaker '{breaker.name}' "
+            f"has a {breaker.stroke:.3f} rad stroke: wrong breaker file for this capture?")
