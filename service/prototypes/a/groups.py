@@ -22,6 +22,9 @@ transducer lag of 100–250 µs at strength 1); a latch ramp is not modelled in 
 
 from __future__ import annotations
 
+from functools import lru_cache
+from pathlib import Path
+
 import numpy as np
 from scipy.signal import lfilter
 
@@ -30,12 +33,16 @@ from .effects import EFFECT_NAMES, OPERATIONS, REALISTIC, Effects
 OUTSIDE = ("sensor_lag",)
 OUTSIDE_OPERATIONS = {"sensor_lag": ("open", "close")}
 FRICTION_EFFECTS = ("viscous_friction", "stribeck_friction", "cam_friction")
+REFERENCE_BREAKER = Path(__file__).resolve().parents[3] / "config" / "breakers" / "reference-252kV.toml"
 FRICTION_SHARE = 0.5   # share of the resistance torques TOf/TCf that is friction (the rest: contact load, gravity)
 
 
+@lru_cache(maxsize=1)
 def _breaker():
-    from service.studies.common import load_reference
-    return load_reference()
+    """The reference 252 kV breaker, read once per process."""
+    from service.breaker_file import load_breaker
+
+    return load_breaker(REFERENCE_BREAKER)
 
 
 def make_unit(rng, *, effects=None, tolerance=0.03) -> dict:
