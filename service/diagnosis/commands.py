@@ -54,7 +54,9 @@ def expand(args_captures) -> list:
 def run_diagnose(args) -> int:
     from ..acquisition.capture_file import read_capture
     from ..breaker_file import load_breaker
+    from ..estimation.record import operation_capture
     from .diagnose import diagnose
+    from .errors import DiagnosisError
 
     if args.plot:
         from service.plots import require_matplotlib
@@ -64,6 +66,12 @@ def run_diagnose(args) -> int:
     paths = expand(args.captures)
     caps = [read_capture(c, travel_channel=breaker.channels["travel"],
                          vibration_channel=breaker.channels["vibration"]) for c in paths]
+    # An analyser record (coil currents, no vibration) holds a close-open sequence: diagnose the
+    # asked operation cut from it, as `hvcb fit --operation` fits it.
+    try:
+        caps = [operation_capture(c, breaker, args.operation)[0] for c in caps]
+    except ValueError as exc:
+        raise DiagnosisError(str(exc)) from None
     result = diagnose(caps, breaker, args.operation, seed=args.seed)
     if args.plot:
         _plot(result, caps[0], breaker, args)
