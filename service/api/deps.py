@@ -99,16 +99,19 @@ async def authorise_key(request: Request, key: str | None, role: str, *, also: t
     principal = cache.get(digest)
     if principal is None:
         wait = throttle.blocked_for(address)
-        if wait > 0:
+        principal = await anyio.to_thread.run_sync(_lookup, request, key, limiter=request.app.state.priority_limiter)
+        if principal is None and wait > 0:
+            # A blocked address learns nothing more than "wait"; a right key still gets in, so the
+            # real admin behind the same NAT address as an attacker is never locked out.
             raise HTTPException(429, f"too many wrong keys from this address: try again in {wait:.0f} s",
                                 headers={"Retry-After": str(max(1, round(wait)))})
-        principal = await anyio.to_thread.run_sync(_lookup, request, key, limiter=request.app.state.priority_limiter)
         if principal is None:
             delay = throttle.failed(address, "API keys")
             if delay:
                 await asyncio.sleep(delay)
             raise HTTPException(401, "unknown or revoked API key", headers={"WWW-Authenticate": "APIKey"})
-        throttle.succeeded(address)
+        if wait == 0:  # a right key from a blocked address does not unblock the others behind it
+            throttle.succeeded(address)
         cache.put(digest, principal)
     if crud.ROLE_RANK[principal.role] < need and principal.role not in also:
         raise HTTPException(403, f"this needs the {role} role; the key has {principal.role}")

@@ -7,9 +7,9 @@ for ``delay`` more; any attempt from the address before then is answered 429 wit
 ``forget_s`` without failures, clears it. A warning is logged when an address is first
 throttled and at every doubling of its failures.
 
-Why this never locks out the real admin: the block is per source address, so an attacker's
-failures do not touch anyone else's address, and a correct key from an address that is not
-blocked is always checked and accepted. Keys are 256-bit random values: the throttle limits
+Why this never locks out the real admin: a right key is always checked and accepted, even from
+a blocked address (the real admin behind the same NAT address as an attacker); a blocked address
+only learns "wait" for a wrong one, and the admin's success does not unblock it. Keys are 256-bit random values: the throttle limits
 noise and load, not the odds of guessing one (nil either way).
 """
 

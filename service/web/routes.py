@@ -92,20 +92,21 @@ async def signin(request: Request, api_key: Annotated[str, Form(max_length=400)]
 
     throttle, address = request.app.state.auth_throttle, client_address(request.scope)
     wait = throttle.blocked_for(address)
-    if wait > 0:
-        resp = _signin_page(request, next=next, status=429,
-                            error=f"too many wrong keys from this address: try again in {wait:.0f} s")
-        resp.headers["Retry-After"] = str(max(1, round(wait)))
-        return resp
     try:
         cookie, _ = await run_in_threadpool(auth.sign_in, request, api_key)
     except WebAuthError as exc:
+        if wait > 0:  # a blocked address learns nothing more than "wait"; a right key still gets in
+            resp = _signin_page(request, next=next, status=429,
+                                error=f"too many wrong keys from this address: try again in {wait:.0f} s")
+            resp.headers["Retry-After"] = str(max(1, round(wait)))
+            return resp
         if exc.kind == "signin" and exc.message.startswith("unknown"):
             delay = throttle.failed(address, "sign-ins")
             if delay:
                 await asyncio.sleep(delay)
         return _signin_page(request, next=next, error=exc.message, status=401)
-    throttle.succeeded(address)
+    if wait == 0:  # a right key from a blocked address does not unblock the others behind it
+        throttle.succeeded(address)
     # a new session on every sign-in; the one this browser carried before ends now (D15)
     await run_in_threadpool(auth.end_presented_session, request)
     resp = RedirectResponse(_safe_next(next), status_code=303)

@@ -76,10 +76,17 @@ def test_wrong_keys_from_one_address_are_throttled_and_the_admin_elsewhere_gets_
     assert "192.0.2.66" in caplog.text
     # the real admin, on its own address, is not slowed or refused
     assert admin.get("/api/v1/breakers", headers={"X-API-Key": keys["admin"]}).status_code == 200
-    # the web sign-in shares the throttle: the attacker's address is refused there too
+    # the web sign-in shares the throttle: a wrong key from the attacker's address is refused there too
+    r = attacker.post("/signin", data={"api_key": "hvcb_guess_web", "csrf_token": signin_csrf(attacker),
+                                       "next": "/"}, follow_redirects=False)
+    assert r.status_code == 429
+    # ... but a right key from that same address (the real admin behind the attacker's NAT) gets in,
+    # on the API and the page, and does not unblock the address for the wrong ones
+    assert attacker.get("/api/v1/breakers", headers={"X-API-Key": keys["admin"]}).status_code == 200
     r = attacker.post("/signin", data={"api_key": keys["reader"], "csrf_token": signin_csrf(attacker), "next": "/"},
                       follow_redirects=False)
-    assert r.status_code == 429
+    assert r.status_code == 303
+    assert attacker.get("/api/v1/breakers", headers={"X-API-Key": "hvcb_guess_3"}).status_code == 429
     r = admin.post("/signin", data={"api_key": keys["reader"], "csrf_token": signin_csrf(admin), "next": "/"},
                    follow_redirects=False)
     assert r.status_code == 303
