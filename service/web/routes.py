@@ -246,10 +246,13 @@ def operation_page(request: Request, operation_id: Id, user: Reader):
         names = OPENING if op.kind == "open" else CLOSING
         from service.acquisition.comtrade_writer import stored_analyser_results
 
+        from .diagnosis_view import view as diagnosis_view
+
         analyser = stored_analyser_results(op.capture_path) if op.capture_path else None
         ctx = {"op": op, "b": b, "fit": op.fit, "diag": diag, "names": names, "units": UNITS,
                "CHARACTERISTICS": CHARACTERISTICS, "nav": "fleet", "pruned": pruned,
-               "analyser": analyser_table(analyser)}
+               "analyser": analyser_table(analyser),
+               "diag_view": diagnosis_view(diag.result) if diag is not None and diag.status == "done" else None}
     return page(request, "operation.html", ctx)  # rendered with the connection back
 
 

@@ -15,6 +15,7 @@ pytest.importorskip("pyiec61850.pyiec61850", reason="IEC 61850 lane off: pip ins
 
 import pyiec61850.pyiec61850 as L  # noqa: E402
 from pyiec61850.mms import MMSClient  # noqa: E402
+from pyiec61850.mms.exceptions import ConnectionFailedError  # noqa: E402
 from pyiec61850.mms.utils import mms_value_to_python  # noqa: E402
 
 from service.iec61850 import points as pm  # noqa: E402
@@ -236,8 +237,14 @@ def test_breaker_registered_while_running_gets_its_logical_device(service):
         c.upsert_breaker(s, name="third", tag="not-an-identifier", breaker_file=row.breaker_file,
                          cam_file_name=row.cam_file_name, cam_table=row.cam_table)
     deadline = time.monotonic() + 30
+    devices = None
     while True:  # the rebuild drops connections; a new one sees the new model
-        client = connect(port)
+        try:
+            client = connect(port)
+        except ConnectionFailedError as exc:  # the server is restarting its model: refused for a moment
+            assert time.monotonic() < deadline, f"the server did not come back after the rebuild: {exc}"
+            time.sleep(0.1)
+            continue
         try:
             devices = sorted(client.get_logical_devices())
             if devices == ["hvcbQ1", "hvcbQ2"]:

@@ -144,7 +144,7 @@ def test_operation_page_shows_curve_residual_and_diagnosis(live, ctx):
     verdict = page.locator("#verdict").inner_text()
     assert verdict
     assert page.locator("table.candidates tbody tr").count() >= 3
-    assert page.locator("svg.bars rect").count() == 4  # four phases of an opening
+    assert page.locator("svg.bars rect.bar-before").count() == 4  # four phases of an opening (bars before; after when corrected)
     screenshot(page, "operation")
     clean(log)
 
@@ -218,9 +218,9 @@ def test_upload_page_is_for_operators_and_shows_the_fit(live, browser, tmp_path,
     cfg = write_comtrade(synth(breaker, "open", 4242, None, T0 + timedelta(days=2)), tmp_path / "up", "upload-me")
     page.set_input_files('input[name="files"]', [str(cfg), str(cfg.with_suffix(".dat"))])
     page.click('#upload-form button[type="submit"]')
-    page.wait_for_url(f"{live.base}/operations/*")
+    page.wait_for_url(f"{live.base}/operations/*", timeout=120000)  # the upload is parsed and stored first
     page.wait_for_selector('#op-summary[data-fit-status="done"]', timeout=60000)
-    page.wait_for_function("() => document.querySelector('[data-chart=\"residual\"] canvas') !== null")
+    page.wait_for_function("() => document.querySelector('[data-chart=\"residual\"] canvas') !== null", timeout=60000)
     assert page.locator("table.params td.strong", has_text="BO").count() == 1
     clean(log)
     context.close()
