@@ -72,12 +72,19 @@ class Admission:
 
     async def enter(self) -> bool:
         sem = self.semaphore()
-        if sem.locked() and self.waiting >= self.queued:
+        if not sem.locked():  # a free slot: asyncio takes it without suspending
+            await sem.acquire()
+            self.inside += 1
+            return True
+        # Shed on the total in the system: a waiter that has just been handed a slot is still
+        # counted as waiting until it resumes, so ``waiting`` alone runs high for a moment.
+        if self.inside + self.waiting >= self.active + self.queued:
             self.shed += 1
             return False
         self.waiting += 1
         try:
-            await asyncio.wait_for(sem.acquire(), self.timeout_s)
+            async with asyncio.timeout(self.timeout_s):  # unlike 3.11's wait_for, never loses a permit
+                await sem.acquire()
         except TimeoutError:
             self.shed += 1
             return False
