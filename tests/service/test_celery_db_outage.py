@@ -104,7 +104,8 @@ def test_the_database_cut_mid_fit_is_retried_and_the_result_lands_once(outage_la
     _until(lambda: _fit(Session, op_id).status == "running", 60, "the worker to claim the fit")
     proxy.cut()
     slow.unlink()
-    time.sleep(4.0)  # the fit ends while the database is gone: its store fails, the task retries
+    # the fit ends while the database is gone: its store fails and the task schedules a retry
+    _until(lambda: "Retry in" in worker.log(), 180, "the task to retry while the database is gone")
     proxy.restore()
     fit = _until(lambda: (f := _fit(Session, op_id)).status in ("done", "failed") and f, 180, "the fit to land")
     assert fit.status == "done", fit.failure_reason
