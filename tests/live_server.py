@@ -25,8 +25,10 @@ class LiveServer:
     """
 
     def __init__(self, app, *, port: int | None = None, name: str = "hvcb-test-server",
-                 log_level: str = "error"):
-        self.app, self.name, self.log_level = app, name, log_level
+                 log_level: str = "error", config=None):
+        """``config(app, port) -> uvicorn.Config`` serves with other settings (hvcb's own
+        protocol and limits, for the security tests); by default a plain loopback config."""
+        self.app, self.name, self.log_level, self.config = app, name, log_level, config
         self.port = port or free_port()
         self.url = f"http://127.0.0.1:{self.port}"
         self.server = self.thread = None
@@ -34,8 +36,9 @@ class LiveServer:
     def start(self, timeout_s: float = 60.0) -> "LiveServer":
         import uvicorn
 
-        self.server = uvicorn.Server(uvicorn.Config(self.app, host="127.0.0.1", port=self.port,
-                                                    log_level=self.log_level, lifespan="on"))
+        config = (self.config(self.app, self.port) if self.config is not None else
+                  uvicorn.Config(self.app, host="127.0.0.1", port=self.port, log_level=self.log_level, lifespan="on"))
+        self.server = uvicorn.Server(config)
         self.thread = threading.Thread(target=self.server.run, name=self.name, daemon=True)
         self.thread.start()
         deadline = time.monotonic() + timeout_s

@@ -5,9 +5,6 @@ sockets (timeouts, bodies announced but not sent, concurrency)."""
 from __future__ import annotations
 
 import importlib.util
-import socket
-import threading
-import time
 from pathlib import Path
 
 import pytest
@@ -21,17 +18,11 @@ pg_server, db_url, env, breaker = svc.pg_server, svc.db_url, svc.env, svc.breake
 BREAKER_FILE, make_settings, synth, Env = svc.BREAKER_FILE, svc.make_settings, svc.synth, svc.Env
 
 
-def free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
-
-
 class Live:
     """A service on 127.0.0.1 served by uvicorn (with hvcb's protocol and limits) in a thread."""
 
-    def __init__(self, app, settings, keys, server, thread):
-        self.app, self.settings, self.keys, self.server, self.thread = app, settings, keys, server, thread
+    def __init__(self, app, settings, keys, served):
+        self.app, self.settings, self.keys, self.served = app, settings, keys, served
         self.base = f"http://127.0.0.1:{settings.port}"
         self.port = settings.port
 
@@ -42,11 +33,10 @@ class Live:
 @pytest.fixture
 def live_server(tmp_path, db_url):
     """live_server(**settings) -> Live; ``routes(app)`` may add test-only routes before start."""
-    import uvicorn
-
     from service.api.app import create_app
     from service.api.server import uvicorn_config
     from service.storage import crud
+    from tests.live_server import LiveServer, free_port
 
     started = []
 
@@ -56,26 +46,18 @@ def live_server(tmp_path, db_url):
         app = create_app(settings, on_key=shown.append)
         if routes is not None:
             routes(app)
-        server = uvicorn.Server(uvicorn_config(app, settings))
-        thread = threading.Thread(target=server.run, name="test-uvicorn", daemon=True)
-        thread.start()
-        deadline = time.monotonic() + 30
-        while not server.started:
-            if time.monotonic() > deadline or not thread.is_alive():
-                raise RuntimeError("the test server did not start")
-            time.sleep(0.05)
+        served = LiveServer(app, port=settings.port, name="test-uvicorn",
+                            config=lambda app, port: uvicorn_config(app, settings))
+        started.append(served.start(timeout_s=30))
         keys = {"admin": shown[0]}
         with app.state.Session() as s, s.begin():
             for role in ("reader", "operator", "agent"):
                 keys[role] = crud.create_api_key(s, name=f"test-{role}", role=role)[1]
-        live = Live(app, settings, keys, server, thread)
-        started.append(live)
-        return live
+        return Live(app, settings, keys, served)
 
     yield start
-    for live in started:
-        live.server.should_exit = True
-        live.thread.join(timeout=30)
+    for served in started:
+        served.stop()
 
 
 def comtrade_pair(capture, *, travel="travel", vibration="vibration") -> tuple[bytes, bytes]:

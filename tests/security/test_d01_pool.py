@@ -9,7 +9,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import httpx
 
-from .test_d15_session_rotation import signin_csrf
+from tests.web_forms import signin_csrf
 
 
 def _holding_route(app, entered: threading.Semaphore, release: threading.Event):

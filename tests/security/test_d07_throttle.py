@@ -11,7 +11,7 @@ from fastapi.testclient import TestClient
 from service.api.throttle import AuthThrottle
 
 from .conftest import sqlite_url
-from .test_d15_session_rotation import signin_csrf
+from tests.web_forms import signin_csrf
 
 
 @pytest.fixture

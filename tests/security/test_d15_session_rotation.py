@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-import re
 
 import pytest
 
 from service.web import auth
+from tests.web_forms import sign_in, signin_csrf
 
 from .conftest import sqlite_url
 
@@ -15,19 +15,6 @@ from .conftest import sqlite_url
 def db_url(tmp_path):
     """SQLite only: this finding does not depend on the database."""
     return sqlite_url(tmp_path)
-
-
-def signin_csrf(client) -> str:
-    r = client.get("/signin")
-    assert r.status_code == 200
-    return re.search(r'name="csrf_token" value="([^"]+)"', r.text).group(1)
-
-
-def sign_in(client, key: str):
-    r = client.post("/signin", data={"api_key": key, "csrf_token": signin_csrf(client), "next": "/"},
-                    follow_redirects=False)
-    assert r.status_code == 303, r.text
-    return r
 
 
 def test_a_second_sign_in_ends_the_session_the_browser_carried(env):

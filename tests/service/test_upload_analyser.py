@@ -33,7 +33,7 @@ def test_upload_co_record_stores_the_opening_and_page_shows_results(env, generic
     op_id = r.json()["operation_id"]
     op = env.client.get(f"/api/v1/operations/{op_id}", headers=env.h("reader")).json()
     assert op["fit"]["status"] == "done", op["fit"]
-    from test_web_security import sign_in
+    from tests.web_forms import sign_in
 
     sign_in(env.client, env.keys["reader"])
     page = env.client.get(f"/operations/{op_id}")

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import re
 import time
 from datetime import timedelta
 
@@ -11,30 +10,12 @@ from itsdangerous import TimestampSigner, URLSafeTimedSerializer
 from sqlalchemy import select, update
 
 from conftest import BREAKER_FILE
+from tests.web_forms import page_csrf, sign_in, signin_csrf  # noqa: F401 (sign_in: other modules import it here)
 from service.storage import crud
 from service.storage.models import AlarmRow, BreakerRow, WebSessionRow, utcnow
 
 EVIL = '<script>alert("x")</script>'
 EVIL_ESCAPED = "&lt;script&gt;alert(&#34;x&#34;)&lt;/script&gt;"
-
-
-def signin_csrf(client) -> str:
-    r = client.get("/signin")
-    assert r.status_code == 200
-    return re.search(r'name="csrf_token" value="([^"]+)"', r.text).group(1)
-
-
-def sign_in(client, key: str):
-    r = client.post("/signin", data={"api_key": key, "csrf_token": signin_csrf(client), "next": "/"},
-                    follow_redirects=False)
-    assert r.status_code == 303, r.text
-    return r
-
-
-def page_csrf(client, path: str = "/") -> str:
-    r = client.get(path)
-    assert r.status_code == 200, r.text
-    return re.search(r'name="csrf_token" value="([^"]+)"', r.text).group(1)
 
 
 def test_cookie_is_signed_httponly_strict_and_the_key_never_leaves_the_form(env):
