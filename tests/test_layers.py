@@ -18,7 +18,7 @@ ROOT = Path(__file__).resolve().parents[1]
 # between packages) and anything lower. Keep in step with docs/architecture.md.
 LAYERS: list[tuple[str, ...]] = [
     ("service.errors", "service.progress", "service.plots", "service.durable", "service.decimation",
-     "service.arguments"),
+     "service.arguments", "service.processes"),
     ("service.mechanics",),                                      # the paper's reduced physics
     ("drivers", "service.breaker_file", "service.breaker_travel", "service.acquisition"),  # captures, DAQs, breaker files
     ("service.estimation", "service.storage", "service.alarms", "service.prototypes"),

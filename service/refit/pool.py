@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import multiprocessing
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures import FIRST_COMPLETED, wait
 
 from service.jobs.fit import JobOptions
 
 from service.jobs.refit import refit_batch
+from service.processes import process_pool
 
 BATCH_TASK = "hvcb.refit_batch"
 
@@ -26,8 +26,7 @@ def local_pool(options: JobOptions, workers: int, on_batch=None):
     """
     def submit(run_id, batches, report):
         opts = options.to_dict()
-        pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-                                   initializer=_warm)
+        pool = process_pool(workers, initializer=_warm)
         pending, queue = set(), list(batches)
         try:
             while queue or pending:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from concurrent.futures import ProcessPoolExecutor
 from functools import lru_cache
 from pathlib import Path
 
@@ -24,11 +23,12 @@ def pool_map(func, tasks, workers: int):
     Results come back in task order. Each worker compiles the numba kernels once (cached on disk).
     A progress bar shows on a terminal (stderr), nothing otherwise.
     """
+    from ..processes import process_pool
     from ..progress import track
 
     tasks = list(tasks)
     desc = getattr(func, "__name__", "tasks").replace("_", " ")
     if workers <= 1 or len(tasks) <= 1:
         return [func(t) for t in track(tasks, desc=desc, unit="task")]
-    with ProcessPoolExecutor(max_workers=min(workers, len(tasks))) as ex:
+    with process_pool(min(workers, len(tasks)), start_method=None) as ex:
         return list(track(ex.map(func, tasks, chunksize=1), total=len(tasks), desc=desc, unit="task"))

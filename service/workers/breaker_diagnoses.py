@@ -10,9 +10,10 @@ submitted again by the next request that reads it (:meth:`ensure`); Celery redel
 
 from __future__ import annotations
 
-import multiprocessing
 import threading
-from concurrent.futures import Future, ProcessPoolExecutor, ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
+
+from service.processes import process_pool
 
 TASK_NAME = "hvcb.breaker_diagnosis"
 
@@ -45,7 +46,7 @@ class BreakerDiagnosisRunner:
                 if self.kind == "inline":
                     self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="ThreadPoolExecutor-diagnosis")
                 else:  # spawn: the API process runs threads, which fork would copy mid-lock
-                    self._pool = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn"))
+                    self._pool = process_pool(1)
             self._futures = {k: f for k, f in self._futures.items() if not f.done()}
             self._futures[diagnosis_id] = self._pool.submit(run_breaker_diagnosis_job, int(diagnosis_id),
                                                             self.settings.sqlalchemy_url)

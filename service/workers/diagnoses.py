@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-import multiprocessing
 import threading
 from concurrent.futures import Future, ProcessPoolExecutor
+
+from service.processes import process_pool
 
 
 class DiagnosisRunner:
@@ -29,7 +30,7 @@ class DiagnosisRunner:
                 return
             if self._pool is None:
                 # spawn: the API process runs threads, which fork would copy mid-lock.
-                self._pool = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn"))
+                self._pool = process_pool(1)
             self._futures[operation_id] = self._pool.submit(run_diagnosis_job, operation_id, self.database_url)
 
     def shutdown(self) -> None:

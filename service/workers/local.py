@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import logging
-import multiprocessing
 import threading
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 
 from service.jobs.fit import JobOptions, run_fit_job
+from service.processes import process_pool
 
 log = logging.getLogger("hvcb.workers")
 
@@ -43,8 +43,7 @@ class LocalExecutor:
                 self._pool = self._new_pool()
 
     def _new_pool(self) -> ProcessPoolExecutor:
-        return ProcessPoolExecutor(max_workers=self.max_workers, mp_context=multiprocessing.get_context("spawn"),
-                                   initializer=_warm)
+        return process_pool(self.max_workers, initializer=_warm)
 
     def pids(self) -> list[int]:
         """Process ids of the pool's workers (tests kill one to check the retry)."""

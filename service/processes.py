@@ -1,0 +1,30 @@
+"""Process pools whose workers leave Ctrl-C to the parent.
+
+A terminal's Ctrl-C (SIGINT) reaches the whole foreground process group. Without this, every
+pool worker of ``hvcb demo`` or a study dies printing a ``KeyboardInterrupt`` traceback while the
+parent is still shutting down cleanly; the parent alone decides when its workers stop.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import signal
+from concurrent.futures import ProcessPoolExecutor
+
+
+def _start_worker(initializer) -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if initializer is not None:
+        initializer()
+
+
+def process_pool(max_workers: int, *, initializer=None, start_method: str | None = "spawn") -> ProcessPoolExecutor:
+    """A ``ProcessPoolExecutor`` of ``max_workers`` that ignore SIGINT.
+
+    ``start_method`` is "spawn" by default: the service runs threads, which fork would copy in
+    the middle of a lock. ``None`` keeps the platform's default (the CLI studies). ``initializer``
+    (a module-level function) runs in each worker after the signal is set.
+    """
+    context = multiprocessing.get_context(start_method) if start_method else None
+    return ProcessPoolExecutor(max_workers=max_workers, mp_context=context,
+                               initializer=_start_worker, initargs=(initializer,))
