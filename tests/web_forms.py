@@ -4,14 +4,14 @@ from __future__ import annotations
 
 import re
 
-_CSRF = re.compile(r'name="csrf_token" value="([^"]+)"')
+CSRF = re.compile(r'name="csrf_token" value="([^"]+)"')
 
 
 def page_csrf(client, path: str = "/") -> str:
     """The CSRF token of the form on ``path``."""
     r = client.get(path)
     assert r.status_code == 200, r.text
-    return _CSRF.search(r.text).group(1)
+    return CSRF.search(r.text).group(1)
 
 
 def signin_csrf(client) -> str:

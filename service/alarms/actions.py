@@ -82,10 +82,13 @@ def observations_from_fit(fit: Any, *, operation_id: int | str, time: datetime,
     return out
 
 
-def health_status(states: Iterable[DriftState]) -> str:
-    """Overall drift status of a breaker: "alarm" | "warning" | "ok" | "unknown" (no baseline yet)."""
-    states = list(states)
-    levels = {s.level for s in states}
+def health_status(states: Iterable[DriftState], shelved: Iterable[str] = ()) -> str:
+    """Overall drift status of a breaker: "alarm" | "warning" | "ok" | "unknown" (no baseline yet).
+
+    The level of a parameter whose alarm an operator has ``shelved`` does not count while shelved.
+    """
+    states, shelved = list(states), set(shelved)
+    levels = {s.level for s in states if s.parameter not in shelved}
     if "alarm" in levels:
         return "alarm"
     if "warning" in levels:

@@ -16,6 +16,7 @@ from drivers.capture import CaptureError
 from service.errors import redact_paths
 from service.jobs.upload import UploadRefused, ingest_upload, parse_upload
 from service.storage import crud
+from service.storage.crud_alarms import annunciated
 from service.storage.fit_curve import fit_curve
 from service.storage.models import BreakerRow, utcnow
 
@@ -363,7 +364,7 @@ def _scada_points(session, settings) -> list[s.ScadaPoint]:
     for row in crud.list_breakers(session):
         d = daq.get(row.id)
         daq_down = d is not None and (not d.connected or d.last_seen is None or now - d.last_seen > daq_timeout)
-        alarms = crud.list_alarms(session, state="active", breaker_id=row.id)
+        alarms = annunciated(crud.list_alarms(session, state="active", breaker_id=row.id), now)
         level = 2 if any(a.level == "alarm" for a in alarms) else 1 if alarms else 0
         for kind, section, names in (("open", "opening", s.OPENING), ("close", "closing", s.CLOSING)):
             fit = crud.latest_fit(session, breaker_id=row.id, kind=kind)

@@ -13,6 +13,7 @@ from datetime import datetime, timedelta
 from sqlalchemy import func, select
 
 from service.storage import crud
+from service.storage.crud_alarms import annunciated
 from service.storage.models import AlarmRow, BreakerRow, FitRow, OperationRow
 
 from .points import BreakerView, FitView, operating_time_level
@@ -84,7 +85,8 @@ def breaker_views(session, *, now: datetime, daq_timeout_s: float, drift_setting
         last = session.execute(select(OperationRow.kind, OperationRow.occurred_at)
                                .where(OperationRow.breaker_id == b.id, OperationRow.clock_suspect.is_(False))
                                .order_by(OperationRow.occurred_at.desc(), OperationRow.id.desc()).limit(1)).first()
-        alarms = {a.parameter: a.level for a in crud.list_alarms(session, state="active", breaker_id=b.id)}
+        alarms = {a.parameter: a.level
+                  for a in annunciated(crud.list_alarms(session, state="active", breaker_id=b.id), now)}
         d = daq.get(b.id)
         daq_down = d is not None and (not d.connected or d.last_seen is None or now - d.last_seen > timeout)
         out[b.id] = BreakerView(

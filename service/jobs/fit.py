@@ -259,6 +259,13 @@ def apply_alarm_event(session, *, breaker_id: int, event) -> AlarmRow | None:
     if active is None:
         return None
     if event.kind == "escalated":
+        from service.alarms.lifecycle import Action
+        from service.storage.crud_alarms import add_action, shelved_now
+
+        if shelved_now(active, now):  # a shelve was for the lesser level: the escalation breaks through
+            active.shelved_until = now
+            add_action(session, breaker_id=breaker_id, alarm_id=active.id,
+                       action=Action("unshelve", "hvcb", now, f"escalated to {event.level}", None, active.id))
         active.level, active.state = event.level, "raised"
         active.acknowledged_at = active.acknowledged_by = active.ack_comment = None
         active.evidence, active.message = _jsonable(event.evidence), _message(event)
@@ -322,8 +329,10 @@ def reset_baseline(session, *, breaker_id: int, by: str, settings) -> int:
 def drift_status(session, *, breaker_id: int, settings) -> str:
     from service.alarms import drift
 
+    from service.storage.crud_alarms import shelved_parameters
+
     states = [_drift_state(session, breaker_id, p, settings)[1] for p in settings.watched]
-    return drift.health_status(states)
+    return drift.health_status(states, shelved_parameters(session, breaker_id=breaker_id, now=utcnow()))
 
 
 def fit_row_summary(fit: FitRow | None) -> dict | None:

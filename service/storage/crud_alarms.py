@@ -52,6 +52,25 @@ def operation_temperatures(session: Session, operation_ids) -> dict[int, float |
     return {i: t for i, t in rows}
 
 
+def shelved_now(alarm: AlarmRow, now: datetime) -> bool:
+    """An active alarm inside its shelve (``service.alarms.lifecycle.AlarmView.shelved``)."""
+    return (alarm.state in ("raised", "acknowledged") and alarm.shelved_until is not None
+            and now < alarm.shelved_until)
+
+
+def annunciated(alarms, now: datetime) -> list[AlarmRow]:
+    """The alarms an operator is told of: the active ones not shelved (ISA-18.2 shelving
+    suppresses the annunciation, not the record; history and the alarm list still show them)."""
+    return [a for a in alarms if not shelved_now(a, now)]
+
+
+def shelved_parameters(session: Session, *, breaker_id: int, now: datetime) -> set[str]:
+    """The watched parameters of the breaker whose active alarm is shelved at ``now``."""
+    q = select(AlarmRow).where(AlarmRow.breaker_id == breaker_id, AlarmRow.state.in_(("raised", "acknowledged")),
+                               AlarmRow.shelved_until.is_not(None))
+    return {a.parameter for a in session.scalars(q) if shelved_now(a, now)}
+
+
 def add_action(session: Session, *, breaker_id: int, action, alarm_id: int | None = None) -> AlarmActionRow:
     """Store one audited ``service.alarms.lifecycle.Action``."""
     row = AlarmActionRow(breaker_id=breaker_id, alarm_id=alarm_id if alarm_id is not None else action.alarm_id,

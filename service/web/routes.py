@@ -20,6 +20,7 @@ from starlette.background import BackgroundTask
 
 from drivers.capture import CaptureError
 from service.storage import crud, crud_web
+from service.storage.crud_alarms import annunciated
 from service.storage.models import DiagnosisRow, utcnow
 
 from . import auth
@@ -150,10 +151,11 @@ def daq_states(session, settings) -> dict[int, dict]:
 
 
 def _fleet(session, settings) -> list[dict]:
-    daq = daq_states(session, settings)
+    daq, now = daq_states(session, settings), utcnow()
     rows = []
     for b in crud.list_breakers(session):
-        alarms = crud.list_alarms(session, state="active", breaker_id=b.id)
+        active = crud.list_alarms(session, state="active", breaker_id=b.id)
+        alarms = annunciated(active, now)
         latest = {}
         for name in ("DO", "BO"):
             vals = crud_web.recent_values(session, breaker_id=b.id, name=name, limit=30)
@@ -163,7 +165,7 @@ def _fleet(session, settings) -> list[dict]:
                                 "spark": sparkline([x[1] for x in vals])}
         rows.append({"breaker": b, "status": breaker_status(session, b.id, settings, alarms),
                      "last": crud_web.last_operation_times(session, breaker_id=b.id), "latest": latest,
-                     "alarms": alarms, "daq": daq.get(b.id)})
+                     "alarms": alarms, "shelved": [a for a in active if a not in alarms], "daq": daq.get(b.id)})
     return rows
 
 

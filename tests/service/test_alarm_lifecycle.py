@@ -12,6 +12,7 @@ from comtrade_bytes import comtrade_pair
 from conftest import BREAKER_FILE, synth
 from service.storage import crud
 from service.storage.models import AlarmActionRow, OperationRow
+from tests.web_forms import CSRF, sign_in
 
 
 def _op(s, i: int, t: datetime, *, temperature=None, breaker_id=1):
@@ -198,19 +199,11 @@ def test_temperature_from_the_upload_field_and_from_a_capture_channel(env, break
 
 
 def _web_sign_in(env, role="operator"):
-    import re
-
-    c = env.client
-    page = c.get("/signin").text
-    token = re.search(r'name="csrf_token" value="([^"]+)"', page).group(1)
-    r = c.post("/signin", data={"api_key": env.keys[role], "csrf_token": token, "next": "/"}, follow_redirects=False)
-    assert r.status_code == 303, r.text
+    sign_in(env.client, env.keys[role])
 
 
 def _csrf(html: str) -> str:
-    import re
-
-    return re.search(r'name="csrf_token" value="([^"]+)"', html).group(1)
+    return CSRF.search(html).group(1)
 
 
 def test_web_alarm_page_shows_evidence_history_and_shelves_and_takes_out_of_service(env):
@@ -253,3 +246,60 @@ def test_web_upload_form_takes_a_temperature(env, breaker):
         row = s.get(OperationRow, op_id)
         assert (row.temperature_c, row.temperature_source) == (4.5, "upload")
     env.wait_fits()
+
+
+def test_a_shelved_alarm_leaves_the_fleet_status_scada_and_iec61850_until_it_unshelves(env):
+    """ISA-18.2 shelving suppresses the annunciation, not the record: SCADA's alarm level, the
+    health status, the IEC 61850 view and the fleet page's alarm column drop the shelved alarm;
+    the alarm list and the history keep it."""
+    from service.iec61850.snapshot import OperatingTimeCache, breaker_views
+    from service.storage.models import utcnow
+
+    settings = _leak(env)
+    (a,) = _active(env)
+    tag = crud.list_breakers(env.Session())[0].tag
+
+    def announced():
+        env.client.app.state.scada_cache = None  # the points are cached for 1 s (SCADA_CACHE_S)
+        points = {p["point"]: p["value"] for p in
+                  env.client.get("/api/v1/scada/points", headers=env.h("reader")).json()}
+        health = env.client.get("/api/v1/breakers/1/health", headers=env.h("reader")).json()
+        with env.Session() as s:
+            view = breaker_views(s, now=utcnow(), daq_timeout_s=60, drift_settings=settings,
+                                 cache=OperatingTimeCache())[1]
+        return points[f"{tag}.alarm_level"], health["status"], view.alarms
+
+    level, status, iec = announced()
+    assert level >= 1 and status == a["level"] and iec == {"DO": a["level"]}
+    r = env.client.post(f"/api/v1/alarms/{a['id']}/shelve", json={"minutes": 60, "reason": "crew on site"},
+                        headers=env.h("operator"))
+    assert r.status_code == 200, r.text
+    assert announced() == (0.0, "ok", {})
+    _web_sign_in(env, "reader")
+    fleet = env.client.get("/").text
+    assert "DO alarm shelved until" in fleet or "DO warning shelved until" in fleet
+    assert [x["id"] for x in _active(env)] == [a["id"]]  # still on the alarm list
+    assert env.client.post(f"/api/v1/alarms/{a['id']}/unshelve", headers=env.h("operator")).status_code == 200
+    assert announced() == (level, status, iec)
+
+
+def test_an_escalation_breaks_through_a_shelve_and_says_so_in_the_audit(env):
+    from service.alarms import AlarmEvent
+    from service.jobs.fit import apply_alarm_event
+    from service.storage.models import AlarmRow, utcnow
+
+    with env.Session() as s, s.begin():
+        now = utcnow()
+        warning = AlarmRow(breaker_id=1, parameter="BO", level="warning", state="raised", first_out=True, episode=1,
+                           message="WARNING: BO", evidence={}, raised_at=now, updated_at=now,
+                           shelved_until=now + timedelta(hours=2), shelved_at=now, shelved_by="op",
+                           shelve_reason="known")
+        s.add(warning)
+    with env.Session() as s, s.begin():
+        apply_alarm_event(s, breaker_id=1, event=AlarmEvent("escalated", "BO", "alarm", 1, None, utcnow(),
+                                                            {"drift_direction": "falling"}))
+    with env.Session() as s:
+        row = s.scalar(select(AlarmRow).where(AlarmRow.parameter == "BO"))
+        assert row.level == "alarm" and row.shelved_until <= utcnow()
+        (audit,) = s.scalars(select(AlarmActionRow).where(AlarmActionRow.alarm_id == row.id))
+    assert (audit.action, audit.by, audit.reason) == ("unshelve", "hvcb", "escalated to alarm")
