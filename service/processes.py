@@ -11,20 +11,34 @@ import multiprocessing
 import signal
 from concurrent.futures import ProcessPoolExecutor
 
+_SIGINT = {signal.SIGINT}
+
 
 def _start_worker(initializer) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, _SIGINT)  # one held during start-up is dropped now
     if initializer is not None:
         initializer()
 
 
+class _Pool(ProcessPoolExecutor):
+    def submit(self, fn, /, *args, **kwargs):
+        # Workers are started inside submit and inherit this thread's signal mask: with SIGINT
+        # blocked, a Ctrl-C during a worker's imports waits until _start_worker ignores it.
+        # (A blocked SIGINT on the caller's own thread is delivered when the mask is restored.)
+        old = signal.pthread_sigmask(signal.SIG_BLOCK, _SIGINT)
+        try:
+            return super().submit(fn, *args, **kwargs)
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
 def process_pool(max_workers: int, *, initializer=None, start_method: str | None = "spawn") -> ProcessPoolExecutor:
-    """A ``ProcessPoolExecutor`` of ``max_workers`` that ignore SIGINT.
+    """A ``ProcessPoolExecutor`` of ``max_workers`` that ignore SIGINT from their first instruction.
 
     ``start_method`` is "spawn" by default: the service runs threads, which fork would copy in
     the middle of a lock. ``None`` keeps the platform's default (the CLI studies). ``initializer``
     (a module-level function) runs in each worker after the signal is set.
     """
     context = multiprocessing.get_context(start_method) if start_method else None
-    return ProcessPoolExecutor(max_workers=max_workers, mp_context=context,
-                               initializer=_start_worker, initargs=(initializer,))
+    return _Pool(max_workers=max_workers, mp_context=context, initializer=_start_worker, initargs=(initializer,))

@@ -32,3 +32,15 @@ def _mark() -> None:
 
 def _marked() -> str:
     return os.environ.get("HVCB_TEST_POOL_WARM", "cold")
+
+
+def _sigint_state():
+    return signal.getsignal(signal.SIGINT), signal.SIGINT in signal.pthread_sigmask(signal.SIG_BLOCK, [])
+
+
+def test_a_worker_ignores_sigint_and_the_callers_mask_is_restored():
+    before = signal.pthread_sigmask(signal.SIG_BLOCK, [])
+    with process_pool(1) as pool:
+        handler, blocked = pool.submit(_sigint_state).result(timeout=120)
+    assert handler == signal.SIG_IGN and not blocked  # ignored, and not left blocked
+    assert signal.pthread_sigmask(signal.SIG_BLOCK, []) == before
