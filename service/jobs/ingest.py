@@ -165,12 +165,13 @@ class Monitor:
                     raise
                 op_id = op.id
         except (OperationalError, DBAPIError) as exc:
-            if self.db_ok:
-                log.warning("database unavailable (%s); spooling captures", exc.__class__.__name__)
+            if self.db_ok:  # the driver's own words (e.g. "database is locked"), not a class name
+                reason = str(getattr(exc, "orig", None) or exc).strip().splitlines()[0][:200]
+                log.warning("database unavailable (%s); spooling captures until it is back", reason)
             self.db_ok = False
             return None
         if not self.db_ok:
-            log.info("database back; storing spooled captures")
+            log.warning("database back; storing spooled captures")
         self.db_ok = True
         self.spool.remove(entry["capture_key"])
         self.executor.submit(op_id)

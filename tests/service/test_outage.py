@@ -120,7 +120,7 @@ def _check_none_lost_or_duplicated(Session, results, fits):
     assert len(fits) == len(keys) and all(f.status == "done" and f.results_stored == 1 for f in fits)
 
 
-def test_sqlite_locked_30s_while_operations_arrive_spool_thread_stores_all(tmp_path, db_url, breaker):
+def test_sqlite_locked_30s_while_operations_arrive_spool_thread_stores_all(tmp_path, db_url, breaker, caplog):
     if not db_url.startswith("sqlite"):
         pytest.skip("the SQLite outage; PostgreSQL has the proxy test")
     settings = make_settings(tmp_path, db_url, spool_retry_s=1.0)
@@ -141,6 +141,9 @@ def test_sqlite_locked_30s_while_operations_arrive_spool_thread_stores_all(tmp_p
             locker.close()
         fits = _wait_stored(monitor, Session, results)  # nobody calls drain_spool: the service's thread does
         _check_none_lost_or_duplicated(Session, results, fits)
+        said = [r.getMessage() for r in caplog.records if r.name == "hvcb.monitor"]
+        assert "database unavailable (database is locked); spooling captures until it is back" in said
+        assert "database back; storing spooled captures" in said  # the operator sees it end, too
     finally:
         monitor.stop()
         engine.dispose()
