@@ -22,6 +22,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 from drivers.backoff import Backoff
+from service.errors import in_words
 
 log = logging.getLogger("hvcb.daq")
 
@@ -293,7 +294,7 @@ class DaqRunner:
             return productive, "the driver did not stop"
         exc = pipeline.exception() if not pipeline.cancelled() else None
         if exc is not None:
-            return productive, f"{type(exc).__name__}: {exc}"
+            return productive, in_words(exc)
         if self.acq.driver == "replay":
             self._set(state="finished", error=None)
             log.info("DAQ %s: the replay ended (%d captures)", self.name, self._state.captures)

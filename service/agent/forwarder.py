@@ -19,6 +19,7 @@ from pathlib import Path
 import httpx
 
 from drivers.backoff import Backoff
+from service.errors import in_words
 
 from .outbox import Outbox, OutboxEntry
 
@@ -92,7 +93,7 @@ class Forwarder:
             r = self.client.post(f"/api/v1/breakers/{breaker_id}/captures", files=files, data=data,
                                  headers={"Idempotency-Key": entry.key})
         except httpx.HTTPError as exc:
-            self._fail(f"central server unreachable: {type(exc).__name__}: {exc}")
+            self._fail(f"central server unreachable: {in_words(exc)}")
             return "retry"
         if r.status_code in (200, 202):
             if not self.central_up:

@@ -16,6 +16,7 @@ from fastapi.responses import JSONResponse, Response
 from sqlalchemy import select
 from sqlalchemy.exc import DBAPIError, OperationalError, TimeoutError as PoolTimeout
 
+from service.errors import in_words
 from service.settings import Settings
 from service.storage import crud
 from service.storage.db import make_engine, session_factory
@@ -175,7 +176,7 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
     @app.exception_handler(OperationalError)
     @app.exception_handler(DBAPIError)
     async def _db_down(request: Request, exc: Exception):
-        log.warning("database error on %s: %s", request.url.path, exc.__class__.__name__)
+        log.warning("database error on %s: %s", request.url.path, in_words(exc))
         return JSONResponse({"detail": "database unavailable; try again shortly"}, status_code=503,
                             headers={"Retry-After": "5"})
 

@@ -13,7 +13,7 @@ import threading
 import time
 from datetime import datetime, timezone
 
-from service.errors import UserError
+from service.errors import UserError, in_words
 
 from . import points as pm
 from .snapshot import OperatingTimeCache, breaker_views, breakers, fingerprint
@@ -254,7 +254,7 @@ class Iec61850Server:
             try:
                 self._refresh()
             except Exception as exc:  # the DB may be down for a while; keep serving the last values
-                log.warning("IEC 61850: refresh failed (%s: %s); last values kept", type(exc).__name__, exc)
+                log.warning("IEC 61850: refresh failed (%s); last values kept", in_words(exc))
 
     def _refresh(self, force: bool = False) -> None:
         now_m = time.monotonic()

@@ -117,14 +117,17 @@ def failure_reason(exc: Exception) -> str:
     """The reason a job failed, in words an engineer understands."""
     from drivers.capture import CaptureError
 
-    text = str(exc) or type(exc).__name__
+    from service.errors import in_words
+
+    text = in_words(exc)
     if isinstance(exc, CaptureError):
         return f"capture unusable: {text}"
     if type(exc).__name__ == "FitError":
-        return text
+        return str(exc) or text
     if isinstance(exc, (ImportError, AttributeError)) and "estimation" in text:
         return f"the estimator is not available: {text}"
-    return f"{type(exc).__name__}: {text}"
+    log.error("unexpected failure of a job: %s", text, exc_info=exc)  # the traceback, for developers
+    return f"unexpected failure: {text}"
 
 
 def warm_prior(breaker, kind: str, previous: tuple | None):

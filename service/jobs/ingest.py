@@ -19,6 +19,7 @@ from pathlib import Path
 from sqlalchemy.exc import DBAPIError, IntegrityError, OperationalError
 
 from drivers.capture import Capture, CaptureError
+from service.errors import in_words
 from service.storage import crud
 from service.storage.spool import Spool, capture_digest, capture_files, write_capture_file
 
@@ -89,7 +90,7 @@ class Monitor:
             with self.Session() as session:
                 pending = crud.pending_operation_ids(session)
         except (OperationalError, DBAPIError) as exc:
-            log.warning("database unavailable at start-up (%s); will retry", exc.__class__.__name__)
+            log.warning("database unavailable at start-up (%s); will retry", in_words(exc))
             self.db_ok = False
             return 0
         for op_id in pending:
@@ -166,8 +167,7 @@ class Monitor:
                 op_id = op.id
         except (OperationalError, DBAPIError) as exc:
             if self.db_ok:  # the driver's own words (e.g. "database is locked"), not a class name
-                reason = str(getattr(exc, "orig", None) or exc).strip().splitlines()[0][:200]
-                log.warning("database unavailable (%s); spooling captures until it is back", reason)
+                log.warning("database unavailable (%s); spooling captures until it is back", in_words(exc))
             self.db_ok = False
             return None
         if not self.db_ok:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import sys
 from datetime import datetime, timezone
 
-from service.errors import UserError
+from service.errors import UserError, in_words
 
 
 def register(subparsers) -> None:
@@ -50,7 +50,7 @@ def _check_database(engine, url: str) -> None:
         raise UserError(f"database {where}: {exc}") from None
     except SQLAlchemyError as exc:
         engine.dispose()
-        raise UserError(f"database {where} cannot be reached ({type(exc).__name__}); check "
+        raise UserError(f"database {where} cannot be reached ({in_words(exc)}); check "
                         "DATABASE_URL or the settings") from None
 
 
