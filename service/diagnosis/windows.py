@@ -23,6 +23,10 @@ from .data import STATE, WindowData, model_curve, window_data
 from .errors import DiagnosisError
 
 BASE_NFEV = 30      # polish of the reduced model (least_squares evaluations)
+# τ, the onset delay the polish may move: −2…+5 ms about the trigger (a prototype's latch) or,
+# when the estimator found the motion further from it (an analyser's coil-to-motion delay of
+# 10-20 ms), the same span about the estimator's delay.
+TAU_SPAN = (-2e-3, 5e-3)
 GAP_P = 1e-3        # a baseline whose χ² is this improbable is also polished from the design state
 JAC_STEP = 1e-4     # relative finite-difference step of the state Jacobian
 
@@ -71,15 +75,18 @@ def prepare(captures, breaker: Breaker, operation: str, *, fitter=None, seed: in
         raise DiagnosisError("no capture given")
     if fitter is None:
         from ..estimation import fit_capture as fitter
-    out = []
+    fits = []
     for cap in captures:
         check_breaker(cap, breaker, operation)
         try:
-            fr = fitter(cap, breaker, operation, seed=seed)
+            fits.append((cap, fitter(cap, breaker, operation, seed=seed)))
         except ValueError as exc:
             msg = str(exc)
             name = cap.source or "capture"
             raise DiagnosisError(msg if msg.startswith(name) else f"{name}: {msg}") from None
+    breaker = with_estimated_structure(breaker, [fr for _, fr in fits])
+    out = []
+    for cap, fr in fits:
         data = window_data(cap, fr, breaker, operation)
         if data.t.size < 20:
             raise DiagnosisError(f"{data.source}: the valid window holds only {data.t.size} blocks "
@@ -88,6 +95,27 @@ def prepare(captures, breaker: Breaker, operation: str, *, fitter=None, seed: in
         x = baseline(x0, data, breaker, operation)
         out.append(linearise(x, data, breaker, operation))
     return Windows(operation, breaker, out)
+
+
+def with_estimated_structure(breaker: Breaker, fits) -> Breaker:
+    """``breaker`` with the α0 [rad] and CO [s⁻¹] its fits estimated (an ``[unknown_design]``:
+    the median over the captures), so the diagnosis models the curve the fit found; unchanged
+    when the design is known."""
+    import dataclasses
+
+    values = {name: [f.structure[name]["value"] for f in fits if name in (getattr(f, "structure", None) or {})]
+              for name in ("alpha0", "CO")}
+    if not values["alpha0"] and not values["CO"]:
+        return breaker
+    alpha0 = float(np.median(values["alpha0"])) if values["alpha0"] else breaker.alpha0
+    caec = (float(np.median(values["CO"])) * breaker.J2 / breaker.raec ** 2) if values["CO"] else breaker.caec
+    return dataclasses.replace(breaker, alpha0=alpha0, caec=caec)
+
+
+def tau_span(tau0: float) -> tuple[float, float]:
+    """The onset delays [s] the polish may take, for the estimator's delay ``tau0`` [s]."""
+    lo, hi = TAU_SPAN
+    return (lo, hi) if lo <= tau0 <= hi else (tau0 + lo, tau0 + hi)
 
 
 def linearise(x, data: WindowData, breaker: Breaker, operation: str) -> CaptureWindow:
@@ -109,7 +137,7 @@ def linearise(x, data: WindowData, breaker: Breaker, operation: str) -> CaptureW
 def _bounds(x0):
     lo = np.asarray(x0, float) * 0.2
     hi = np.asarray(x0, float) * 5.0
-    lo[-1], hi[-1] = -2e-3, 5e-3
+    lo[-1], hi[-1] = tau_span(float(x0[-1]))
     return lo, hi
 
 
@@ -137,7 +165,8 @@ def baseline(x0, data, breaker, operation):
         return x
     design = breaker.design_parameters()
     xd = np.array([design[k] for k in STATE[operation]] + [0.0])
-    taus = np.linspace(-1.5e-3, 4.5e-3, 25)
+    lo, hi = tau_span(float(x0[-1]))
+    taus = np.linspace(lo + 0.5e-3, hi - 0.5e-3, 25)
     costs = []
     for tau in taus:
         xd[-1] = tau
