@@ -331,7 +331,6 @@ def reset_baseline(session, *, breaker_id: int, by: str, settings) -> int:
 
 def drift_status(session, *, breaker_id: int, settings) -> str:
     from service.alarms import drift
-
     from service.storage.crud_alarms import shelved_parameters
 
     states = [_drift_state(session, breaker_id, p, settings)[1] for p in settings.watched]
