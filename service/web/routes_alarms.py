@@ -75,13 +75,25 @@ def plot(ev: dict) -> dict:
             "has_temperature": any(t is not None for t in s["temperature_c"])}
 
 
+def _alarm(session, alarm_id: int):
+    a = crud.get_alarm(session, alarm_id=alarm_id)
+    if a is None:
+        raise HTTPException(404, f"no alarm {alarm_id}")
+    return a
+
+
+def _breaker(session, breaker_id: int):
+    b = crud.get_breaker(session, breaker_id=breaker_id)
+    if b is None:
+        raise HTTPException(404, f"no breaker {breaker_id}")
+    return b
+
+
 @router.get("/breakers/{breaker_id}/alarms")
 def breaker_alarms_page(request: Request, breaker_id: Id, user: Reader):
     settings = request.app.state.settings.drift_settings
     with _session(request) as session:
-        b = crud.get_breaker(session, breaker_id=breaker_id)
-        if b is None:
-            raise HTTPException(404, f"no breaker {breaker_id}")
+        b = _breaker(session, breaker_id)
         evidence = {p: actions.evidence(session, breaker_id=b.id, parameter=p, settings=settings, limit=400)
                     for p in settings.watched}
         ctx = {"b": b, "nav": "alarms", "history": list(reversed(actions.history(session, breaker_id=b.id))),
@@ -104,9 +116,7 @@ def shelve(request: Request, alarm_id: Id, user: OperatorPost,
            hours: Annotated[float, Form(gt=0, le=MAX_SHELVE.total_seconds() / 3600)],
            reason: Annotated[str, Form(min_length=3, max_length=500)]):
     with _session(request) as session:
-        a = crud.get_alarm(session, alarm_id=alarm_id)
-        if a is None:
-            raise HTTPException(404, f"no alarm {alarm_id}")
+        a = _alarm(session, alarm_id)
         resp = _done(request, a.breaker_id, lambda: actions.shelve(session, alarm=a, by=user.name,
                                                                     minutes=hours * 60, reason=reason))
         session.commit()
@@ -117,9 +127,7 @@ def shelve(request: Request, alarm_id: Id, user: OperatorPost,
 def unshelve(request: Request, alarm_id: Id, user: OperatorPost,
              reason: Annotated[str, Form(max_length=500)] = ""):
     with _session(request) as session:
-        a = crud.get_alarm(session, alarm_id=alarm_id)
-        if a is None:
-            raise HTTPException(404, f"no alarm {alarm_id}")
+        a = _alarm(session, alarm_id)
         resp = _done(request, a.breaker_id, lambda: actions.unshelve(session, alarm=a, by=user.name, reason=reason))
         session.commit()
         return resp
@@ -129,9 +137,7 @@ def unshelve(request: Request, alarm_id: Id, user: OperatorPost,
 def out_of_service(request: Request, breaker_id: Id, user: OperatorPost,
                    reason: Annotated[str, Form(min_length=3, max_length=500)]):
     with _session(request) as session:
-        b = crud.get_breaker(session, breaker_id=breaker_id)
-        if b is None:
-            raise HTTPException(404, f"no breaker {breaker_id}")
+        b = _breaker(session, breaker_id)
         resp = _done(request, b.id, lambda: actions.take_out_of_service(session, breaker=b, by=user.name,
                                                                          reason=reason))
         session.commit()
@@ -143,9 +149,7 @@ def return_to_service(request: Request, breaker_id: Id, user: AdminPost,
                       reason: Annotated[str, Form(max_length=500)] = ""):
     settings = request.app.state.settings.drift_settings
     with _session(request) as session:
-        b = crud.get_breaker(session, breaker_id=breaker_id)
-        if b is None:
-            raise HTTPException(404, f"no breaker {breaker_id}")
+        b = _breaker(session, breaker_id)
         resp = _done(request, b.id, lambda: actions.return_to_service(session, breaker=b, by=user.name,
                                                                        reason=reason, settings=settings))
         session.commit()

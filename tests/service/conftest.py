@@ -3,6 +3,7 @@ HVCB_TEST_POSTGRES_URL is set and answers), migrated by Alembic, and an app buil
 
 from __future__ import annotations
 
+import contextlib
 import os
 import threading
 import time
@@ -100,13 +101,13 @@ class Env:
         raise AssertionError(f"fits still pending after {timeout} s")
 
 
-@pytest.fixture
-def env(tmp_path, db_url):
+@contextlib.contextmanager
+def running_app(settings):
+    """``(app, client, keys)``: the app started under a TestClient, with a key per role."""
     from fastapi.testclient import TestClient
 
     from service.api.app import create_app
 
-    settings = make_settings(tmp_path, db_url)
     shown = []
     app = create_app(settings, on_key=shown.append)
     with TestClient(app) as client:
@@ -114,6 +115,13 @@ def env(tmp_path, db_url):
         with app.state.Session() as s, s.begin():
             for role in ("reader", "operator"):
                 keys[role] = crud.create_api_key(s, name=f"test-{role}", role=role)[1]
+        yield app, client, keys
+
+
+@pytest.fixture
+def env(tmp_path, db_url):
+    settings = make_settings(tmp_path, db_url)
+    with running_app(settings) as (app, client, keys):
         yield Env(app, client, keys, settings)
 
 

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 from sqlalchemy import select
 
-from conftest import make_settings, synth
+from conftest import make_settings, running_app, synth
 from service.storage import crud
 from service.storage.models import BreakerDiagnosisRow, CapturePreviewRow, OperationRow
 
@@ -101,19 +101,9 @@ def fake(monkeypatch):
 
 @pytest.fixture
 def svc(tmp_path, db_url, breaker):
-    from fastapi.testclient import TestClient
-
-    from service.api.app import create_app
-
     # fits fail at once: these tests are about diagnoses of stored captures, not about fits
     settings = make_settings(tmp_path, db_url, fit_function="fleet_helpers:no_fit")
-    shown = []
-    app = create_app(settings, on_key=shown.append)
-    with TestClient(app) as client:
-        keys = {"admin": shown[0]}
-        with app.state.Session() as s, s.begin():
-            for role in ("reader", "operator"):
-                keys[role] = crud.create_api_key(s, name=f"test-{role}", role=role)[1]
+    with running_app(settings) as (app, client, keys):
         out = App(app, client, keys)
         out.breaker = breaker
         yield out
