@@ -134,7 +134,8 @@ def analyser_capture(text: str, *, source: str, travel_channel: str = "travel", 
     meta = {"warnings": warnings, "travel_channel": chosen.name, "travel_unit": chosen.unit,
             "travel_map": info,
             "analyser": {"profile": record.profile, "rate_source": record.rate_source, "bare": record.bare,
-                         "metadata": record.metadata, "results": record.results}}
+                         "metadata": record.metadata, "results": record.results,
+                         "unparsed": [dict(u) for u in record.unparsed]}}
     cap = Capture(travel=np.asarray(travel, dtype=float), sample_rate=float(record.sample_rate), vibration=None,
                   source=source, meta=meta, aux=aux)
     check_finite(cap)

@@ -6,6 +6,7 @@ bytes). Every refusal is a :class:`~drivers.capture.CaptureError` naming the fil
 
 from __future__ import annotations
 
+import csv
 import re
 from dataclasses import dataclass, field
 
@@ -15,6 +16,7 @@ from drivers.capture import CaptureError
 
 from .profile import KIND_UNITS, TRAVEL, HeaderValue, Profile, normalise_key
 from .profiles import PROFILES
+from .values import read_date, read_number
 
 
 @dataclass(frozen=True)
@@ -35,7 +37,9 @@ class AnalyserRecord:
 
     ``sample_rate`` [Hz] is None for a bare export read without a rate; ``rate_source`` says
     where it came from. ``metadata`` and ``results`` hold the header's values (per channel as
-    ``{name: {"T1": v, ...}}``); ``warnings`` what the reader noticed.
+    ``{name: {"T1": v, ...}}``); a value that could not be read stays as written (a ``str``) and
+    is listed in ``unparsed`` (``{"name", "channel", "key", "line", "text", "why"}`` each);
+    ``warnings`` what the reader noticed.
     """
 
     profile: str
@@ -47,6 +51,7 @@ class AnalyserRecord:
     warnings: list = field(default_factory=list)
     header_line: int = 0
     bare: bool = False
+    unparsed: tuple = ()
 
     @property
     def samples(self) -> int:
@@ -111,31 +116,39 @@ def parse_analyser(text: str, *, source: str, rate: float | None = None,
         raise CaptureError(f"{source}: not a known analyser export (no line names coil-current and "
                            "contact-travel columns)")
     prof, h = found
+    delim = _delimiter(lines[h])
     warnings: list[str] = []
     metadata: dict = {}
     results: dict = {}
+    unparsed: list[dict] = []
     stated_rate = None
     rate_key = None
-    header_keys = 0
     for i, line in enumerate(lines[:h]):
-        for key, value in _pairs(line):
-            header_keys += 1
-            r = _rate(prof, key, value, source, i + 1)
+        for key, value in _pairs(line, delim):
+            r = _rate(prof, key, value, source, i + 1, unparsed, given=rate)
             if r is not None:
-                stated_rate, rate_key = r, key
+                if r > 0:
+                    stated_rate, rate_key = r, key
                 continue
             velocity = _match(prof.velocity_lines, key)
             if velocity is not None:
                 hv, _ = velocity
                 per = results.setdefault(hv.name, [])
-                per.append(_number(value, source, i + 1, key))
+                before = len(unparsed)
+                per.append(_value(hv, value, key, i + 1, unparsed))
+                if len(unparsed) > before:
+                    unparsed[-1]["k"] = len(per) - 1
                 continue
             for table, target in ((prof.metadata, metadata), (prof.results, results)):
                 m = _match(table, key)
                 if m is not None:
-                    _store(target, m, value, source, i + 1, key)
+                    _store(target, m, _value(m[0], value, key, i + 1, unparsed))
                     break
-    channels, columns_skipped = _table(lines, h, prof, source)
+    if unparsed:
+        warnings.append(f"{len(unparsed)} header field(s) kept as written, not read: "
+                        + "; ".join(f"line {u['line']} '{u['key']}' = '{u['text']}' ({u['why']})"
+                                    for u in unparsed[:5]) + (" ..." if len(unparsed) > 5 else ""))
+    channels, columns_skipped = _table(lines, h, prof, source, delim)
     if columns_skipped:
         warnings.append("columns not in the profile were ignored: " + ", ".join(columns_skipped))
     travel_names = [c.name for c in channels if c.kind == TRAVEL]
@@ -143,6 +156,11 @@ def parse_analyser(text: str, *, source: str, rate: float | None = None,
         values = results.get(hv.name)
         if isinstance(values, list):
             results[hv.name] = {n: v for n, v in zip(travel_names, values)}
+            for u in unparsed:  # the k-th value's channel, now known
+                if u["name"] == hv.name and u["channel"] is None and isinstance(u.get("k"), int):
+                    u["channel"] = travel_names[u["k"]] if u["k"] < len(travel_names) else None
+    for u in unparsed:
+        u.pop("k", None)
     bare = stated_rate is None and not any(metadata.values())
     if stated_rate is not None:
         if rate is not None and abs(rate - stated_rate) > 1e-6 * stated_rate:
@@ -171,12 +189,24 @@ def parse_analyser(text: str, *, source: str, rate: float | None = None,
                             f"{n} samples = {length_ms:g} ms at {sample_rate / 1e3:g} kS/s")
     return AnalyserRecord(profile=prof.name, channels=tuple(channels), sample_rate=sample_rate,
                           rate_source=rate_source, metadata=metadata, results=results,
-                          warnings=warnings, header_line=h + 1, bare=bare)
+                          warnings=warnings, header_line=h + 1, bare=bare, unparsed=tuple(unparsed))
 
 
-def _pairs(line: str):
+def _delimiter(column_line: str) -> str:
+    """``;`` for an export written with a decimal comma (European locales), else ``,``."""
+    return ";" if column_line.count(";") > column_line.count(",") else ","
+
+
+def _cells(line: str, delim: str) -> list:
+    """One line's cells; a quoted cell keeps its delimiter (``"7,0"``)."""
+    if '"' not in line:
+        return line.split(delim)
+    return next(csv.reader([line], delimiter=delim))
+
+
+def _pairs(line: str, delim: str = ","):
     """``Key :,value,,Key2 :,value2`` -> (normalised key, value) pairs."""
-    cells = line.split(",")
+    cells = _cells(line, delim)
     for k, cell in enumerate(cells):
         c = cell.strip()
         if c.endswith(":") and len(c) > 1:
@@ -192,43 +222,52 @@ def _match(table, key: str):
     return None
 
 
-def _rate(prof: Profile, key, value, source, line_no):
+def _rate(prof: Profile, key, value, source, line_no, unparsed: list, given: float | None):
+    """The stated rate [Hz]; 0 when the field is unreadable but ``given`` (--rate) stands in;
+    None when ``key`` is no rate key. The rate times the waveform, so an unreadable one without
+    --rate is refused."""
     for pattern, factor in prof.rate.items():
         if re.fullmatch(pattern, key, re.IGNORECASE):
-            r = _number(value, source, line_no, key) * factor
-            if not r > 0:
-                raise CaptureError(f"{source}, line {line_no}: '{key}' must be a positive rate, got '{value}'")
-            return r
+            unit = {1e3: "kS/s", 1.0: "S/s"}.get(factor)
+            v, why = read_number(value, unit)
+            if why is None and isinstance(v, float) and v > 0:
+                return v * factor
+            why = why or "not a positive rate"
+            if given is None:
+                raise CaptureError(f"{source}, line {line_no}: '{key}' should be a number, got '{value[:20]}' "
+                                   f"({why}); give the rate with --rate")
+            unparsed.append({"name": "sample_rate", "channel": None, "key": key, "line": line_no,
+                             "text": value, "why": why})
+            return 0.0
     return None
 
 
-def _number(value: str, source, line_no, key) -> float:
-    try:
-        v = float(value)
-    except ValueError:
-        raise CaptureError(f"{source}, line {line_no}: '{key}' should be a number, got '{value[:20]}'") from None
-    if not np.isfinite(v):
-        raise CaptureError(f"{source}, line {line_no}: '{key}' is not finite ('{value}')")
+def _value(hv: HeaderValue, value: str, key: str, line_no: int, unparsed: list):
+    """One header value read as ``hv`` says (number, date or text); unreadable: kept as written
+    and appended to ``unparsed``."""
+    if hv.unit is not None:
+        v, why = read_number(value, None if hv.unit == "-" else hv.unit)
+    elif hv.date:
+        v, why = read_date(value)
+    else:
+        return value
+    if why is not None:
+        ch = re.fullmatch(hv.pattern, key, re.IGNORECASE).groupdict().get("ch")
+        unparsed.append({"name": hv.name, "channel": ch.upper() if ch else None, "key": key, "line": line_no,
+                         "text": value, "why": why, "k": None})
     return v
 
 
-def _store(target: dict, match, value, source, line_no, key):
+def _store(target: dict, match, v):
     hv, ch = match
-    if hv.unit is not None:
-        if value.upper() in ("NA", "N/A", "-", ""):
-            v = None
-        else:
-            v = _number(value, source, line_no, key)
-    else:
-        v = value
     if ch is None:
         target[hv.name] = v
     else:
         target.setdefault(hv.name, {})[ch.upper()] = v
 
 
-def _table(lines, h, prof: Profile, source):
-    names = [c.strip() for c in lines[h].split(",")]
+def _table(lines, h, prof: Profile, source, delim: str = ","):
+    names = [c.strip() for c in _cells(lines[h], delim)]
     picked = []  # (cell index, Column, channel number, column name)
     skipped = []
     for j, name in enumerate(names):
@@ -251,7 +290,9 @@ def _table(lines, h, prof: Profile, source):
         line = lines[i]
         if not line.strip(" ,\t"):
             continue  # blank line or a line of separators
-        cells = line.split(",")
+        cells = line.split(delim)
+        if delim == ";":  # decimal commas
+            cells = [c.replace(",", ".") for c in cells]
         if len(cells) < need:
             raise CaptureError(f"{source}, line {i + 1}: {len(cells)} values, but the table's column "
                                f"names (line {h + 1}) need {need}")

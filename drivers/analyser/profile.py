@@ -36,12 +36,15 @@ class Column:
 
 @dataclass(frozen=True)
 class HeaderValue:
-    """A header key (``pattern``) whose value is kept as ``name`` (per channel with group ``ch``),
-    a number in ``unit`` when ``unit`` is set, else text."""
+    """A header key (``pattern``) whose value is kept as ``name`` (per channel with group ``ch``):
+    a number in ``unit`` when ``unit`` is set, a date (ISO 8601) when ``date``, else text.
+    A value that is not what it should be is kept as written and flagged
+    (``drivers.analyser.values``)."""
 
     pattern: str
     name: str
     unit: str | None = None
+    date: bool = False
 
 
 @dataclass(frozen=True)
@@ -72,6 +75,9 @@ class Profile:
         trusted first; 0 means "not stated".
     header_lines_max : int
         The column-name line is searched for in this many first lines.
+    day_first : bool
+        Whether ``01/02/2026`` is the 1st of February (the analyser's locale); a part above 12
+        decides regardless.
     """
 
     name: str
@@ -84,6 +90,7 @@ class Profile:
     plot_length: str | None = None
     stated_stroke: tuple = ()
     header_lines_max: int = 400
+    day_first: bool = True
 
     def recognises(self, line: str) -> bool:
         return all(re.search(p, line, re.IGNORECASE) for p in self.recognise)

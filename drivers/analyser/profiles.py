@@ -30,7 +30,7 @@ TIMING_DCRM_26 = Profile(
         HeaderValue(r"Serial Number", "serial_number"),
         HeaderValue(r"Manufacturer", "manufacturer"),
         HeaderValue(r"Voltage \(kV\)", "rated_voltage_kv", "kV"),
-        HeaderValue(r"Test Date", "test_date"),
+        HeaderValue(r"Test Date", "test_date", date=True),
         HeaderValue(r"Trigger Option", "trigger_option"),
         HeaderValue(r"Plot Length ?\(ms\)", "plot_length_ms", "ms"),
         HeaderValue(r"Delay tco \(ms\)", "t_co_ms", "ms"),

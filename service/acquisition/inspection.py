@@ -151,7 +151,7 @@ def _inspect_analyser(path: Path, text: str, enc: str, rate: float | None) -> di
         "analog": [{"name": c.name, "unit": c.unit, "kind": c.kind, "column": c.column, "wired": c.wired,
                     **_stats(c.data)} for c in rec.channels],
         "digital": [], "warnings": list(rec.warnings), "bare": rec.bare,
-        "metadata": md, "results": rec.results,
+        "metadata": md, "results": rec.results, "unparsed": [dict(u) for u in rec.unparsed],
     }
 
 
@@ -212,6 +212,8 @@ def _inspect_csv(path: Path, encoding: str | None) -> dict:
 
 
 def _num(x) -> str:
+    if isinstance(x, str):  # a header value kept as written (listed under "unparsed")
+        return x
     if x is None or (isinstance(x, float) and not math.isfinite(x)):
         return "-"
     return f"{x:.6g}"
@@ -261,6 +263,9 @@ def format_report(r: dict) -> str:
                 out.append(f"  {name}: {shown or 'all zero'}")
             else:
                 out.append(f"  {name}: {_num(v) if isinstance(v, float) else v}")
+    if r.get("unparsed"):
+        out.append(f"unparsed  {len(r['unparsed'])} header field(s) kept as written")
+        out += [f"  line {u['line']}: {u['key']} = {u['text']!r} ({u['why']})" for u in r["unparsed"]]
     if r["warnings"]:
         out.append("warnings")
         out += [f"  - {w}" for w in r["warnings"]]
