@@ -12,20 +12,6 @@ class CaptureError(ValueError):
     """A capture cannot be used: the message says why, for an engineer."""
 
 
-class ChannelName(str):
-    """A channel name that may carry how the breaker maps a travel recorded in a length (a
-    breaker analyser's contact travel in mm) to ours: ``to_rad(values, unit, stated_stroke)``
-    returns ``(travel [rad from closed], info)`` with ``info`` JSON-able. The breaker file's
-    ``[travel]`` section builds it (``service.travel_map``); a plain ``str`` carries none."""
-
-    to_rad = None
-
-    def __new__(cls, name: str, to_rad=None):
-        obj = super().__new__(cls, name)
-        obj.to_rad = to_rad
-        return obj
-
-
 @dataclass(frozen=True)
 class AuxChannel:
     """A recorded channel besides travel and vibration, in its own unit: a coil current [A], a

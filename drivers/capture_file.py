@@ -40,9 +40,10 @@ def read_capture(path: str | Path, *, travel_channel: str = "travel", vibration_
 
     ``temperature_channel``: a COMTRADE channel with the ambient or mechanism temperature [C or
     K]; its median goes into ``meta["temperature_c"]``. ``rate`` [Hz] is the sampling rate of a
-    bare analyser export (one without a header stating it). ``to_rad`` maps a travel recorded in
-    mm to ours (see ``drivers.capture.ChannelName``); by default the one ``travel_channel``
-    carries, when it is a breaker's ``ChannelName``.
+    bare analyser export (one without a header stating it). ``to_rad(values, unit, stated_stroke)``
+    maps a travel recorded in mm to ours, returning ``(travel [rad from closed], info)`` with
+    ``info`` JSON-able: the breaker's ``travel_map.to_rad`` (its file's ``[travel]`` section);
+    without it an analyser export's mm travel is refused in words.
 
     Raises
     ------
@@ -100,7 +101,6 @@ def analyser_capture(text: str, *, source: str, travel_channel: str = "travel", 
     """An analyser export as a Capture: the chosen contact travel mapped to rad by ``to_rad``,
     the other wired channels in ``aux`` (their own units), the header in ``meta["analyser"]``."""
     record = parse_analyser(text, source=source, rate=rate)
-    to_rad = to_rad or getattr(travel_channel, "to_rad", None)
     travels = [c for c in record.channels if c.kind == TRAVEL]
     wanted = str(travel_channel).strip()
     if wanted.lower() == "travel":

@@ -24,7 +24,6 @@ from pathlib import Path
 
 import numpy as np
 
-from drivers.capture import ChannelName
 
 LENGTH_UNITS = {"mm": 1.0, "m": 1e3, "cm": 10.0}  # to mm
 ESTIMABLE = ("alpha0", "CO")
@@ -121,8 +120,9 @@ def mm_at(info: dict, rad):
 
 
 def travel_options(data: dict, path: Path, stroke_rad: float, channel: str) -> dict:
-    """From a breaker file's parsed TOML: ``travel_channel`` (a ``ChannelName`` carrying the
-    mm mapping when ``[travel]`` has one), ``travel_map`` and ``estimate_structure``."""
+    """From a breaker file's parsed TOML: ``travel_channel`` (the name), ``travel_map`` (the mm
+    mapping when ``[travel]`` has one: its ``to_rad`` goes to the capture reader explicitly)
+    and ``estimate_structure``."""
     travel = data.get("travel", {})
     if not isinstance(travel, dict):
         raise TravelMapError(f"breaker file {path}: [travel] must be a table")
@@ -155,7 +155,6 @@ def travel_options(data: dict, path: Path, stroke_rad: float, channel: str) -> d
     else:
         raise TravelMapError(f"breaker file {path}: [travel] mm_per_rad must be a positive number or "
                              f"\"record\", got {ratio!r}")
-    out["travel_channel"] = ChannelName(channel, to_rad=tmap.to_rad)
     out["travel_map"] = tmap
     return out
 

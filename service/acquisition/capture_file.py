@@ -17,6 +17,15 @@ from drivers.capture_file import (  # noqa: F401
 )
 
 
+def breaker_reading(breaker) -> dict:
+    """The capture reader's keywords for ``breaker``: its channel names and its mm mapping
+    (``to_rad`` of the breaker file's ``[travel]`` section, None when it has none)."""
+    tmap = getattr(breaker, "travel_map", None)
+    return {"travel_channel": breaker.channels.get("travel", "travel"),
+            "vibration_channel": breaker.channels.get("vibration", "vibration"),
+            "to_rad": tmap.to_rad if tmap is not None else None}
+
+
 def read_stored_capture(path, breaker):
     """Read a stored capture of ``breaker`` with its breaker file's channel names.
 
@@ -27,10 +36,10 @@ def read_stored_capture(path, breaker):
     """
     from drivers.capture import CaptureError
 
-    travel = breaker.channels.get("travel", "travel")
-    vibration = breaker.channels.get("vibration", "vibration")
+    kw = breaker_reading(breaker)
+    travel = kw["travel_channel"]
     try:
-        return read_capture(path, travel_channel=travel, vibration_channel=vibration)
+        return read_capture(path, **kw)
     except CaptureError as exc:
         if travel.lower() == "travel" or "no channel named" not in str(exc):
             raise

@@ -78,12 +78,11 @@ def _settings(args):
 
 
 def run_detect(args) -> int:
-    from .capture_file import read_capture
+    from .capture_file import breaker_reading, read_capture
     from .trigger import detect_capture
 
     breaker, settings = _settings(args)
-    recording = read_capture(args.stream, travel_channel=breaker.channels.get("travel", "travel"),
-                             vibration_channel=breaker.channels.get("vibration", "vibration"), rate=args.rate)
+    recording = read_capture(args.stream, **breaker_reading(breaker), rate=args.rate)
     from service.progress import progress
 
     with progress(recording.travel.size, desc=f"detect {Path(args.stream).name}", unit="sample",

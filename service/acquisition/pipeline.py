@@ -154,15 +154,14 @@ async def capture_records(paths, breaker, out_dir: str | Path, *, on_capture: Ca
     in mm, no vibration channel): each operation found in them (``detect_capture``'s coil path)
     is written as COMTRADE and handed on like a triggered capture. The replay of an edge agent
     uses it for analyser exports; the files are read with the breaker's channel mapping."""
-    from .capture_file import read_capture
+    from .capture_file import breaker_reading, read_capture
     from .trigger import TriggerSettings, detect_capture
 
     out_dir = Path(out_dir)
     stats = CaptureStats()
     settings = TriggerSettings.from_breaker(breaker)
     for path in paths:
-        record = await asyncio.to_thread(read_capture, path, travel_channel=breaker.channels.get("travel", "travel"),
-                                         vibration_channel=breaker.channels.get("vibration", "vibration"))
+        record = await asyncio.to_thread(read_capture, path, **breaker_reading(breaker))
         for det in detect_capture(record, settings):
             name = f"{prefix}-{Path(path).stem}-{det.shock_index:08d}-{det.operation}"
             out = await asyncio.to_thread(write_comtrade, det.capture, out_dir, name, format=fmt, station=station)

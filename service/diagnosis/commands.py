@@ -52,7 +52,7 @@ def expand(args_captures) -> list:
 
 
 def run_diagnose(args) -> int:
-    from ..acquisition.capture_file import read_capture
+    from ..acquisition.capture_file import breaker_reading, read_capture
     from ..breaker_file import load_breaker
     from ..estimation.record import operation_capture
     from .diagnose import diagnose
@@ -64,8 +64,7 @@ def run_diagnose(args) -> int:
         require_matplotlib("--plot")  # before the work, not after it
     breaker = load_breaker(args.breaker)
     paths = expand(args.captures)
-    caps = [read_capture(c, travel_channel=breaker.channels["travel"],
-                         vibration_channel=breaker.channels["vibration"]) for c in paths]
+    caps = [read_capture(c, **breaker_reading(breaker)) for c in paths]
     # An analyser record (coil currents, no vibration) holds a close-open sequence: diagnose the
     # asked operation cut from it, as `hvcb fit --operation` fits it.
     try:

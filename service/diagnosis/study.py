@@ -33,13 +33,12 @@ QUICK = {"per_effect": 1, "controls": 2, "two_effect": 1, "outside": 1, "capture
 
 def _diagnose_job(job: dict) -> dict:
     """Diagnose one group (or one capture) from its files, blind."""
-    from ..acquisition.capture_file import read_capture
+    from ..acquisition.capture_file import breaker_reading, read_capture
     from ..studies.common import load_reference
     from .diagnose import DiagnosisError, diagnose
 
     breaker = load_reference()
-    caps = [read_capture(str(Path(job["dir"]) / (s if s.endswith(".cfg") else f"{s}.cfg")), travel_channel=breaker.channels["travel"],
-                         vibration_channel=breaker.channels["vibration"]) for s in job["stems"]]
+    caps = [read_capture(str(Path(job["dir"]) / (s if s.endswith(".cfg") else f"{s}.cfg")), **breaker_reading(breaker)) for s in job["stems"]]
     t0 = time.process_time()
     try:
         r = diagnose(caps, breaker, job["operation"], next_measurements=False)

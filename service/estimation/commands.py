@@ -6,7 +6,7 @@ import json
 import sys
 
 from drivers.capture import CaptureError
-from ..acquisition.capture_file import read_capture
+from ..acquisition.capture_file import breaker_reading, read_capture
 from ..breaker_file import BreakerFileError, load_breaker
 from ..errors import UserError
 from .fit import fit_capture
@@ -37,8 +37,7 @@ def register(subparsers) -> None:
 def run_fit(args) -> int:
     try:
         breaker = load_breaker(args.breaker)
-        capture = read_capture(args.capture, travel_channel=breaker.channels["travel"],
-                               vibration_channel=breaker.channels["vibration"], rate=args.rate)
+        capture = read_capture(args.capture, **breaker_reading(breaker), rate=args.rate)
         result = fit_capture(capture, breaker, args.operation, dc=args.dc, seed=args.seed, index=args.index)
     except (BreakerFileError, CaptureError, FitError) as exc:
         raise UserError(str(exc)) from None

@@ -156,7 +156,7 @@ def _read(jobs, breaker):
     """[(operation id, Capture)] of the files that are still there and unchanged, and the others
     as ``{"operation_id", "reason"}``."""
     from drivers.capture import CaptureError
-    from service.acquisition.capture_file import read_capture
+    from service.acquisition.capture_file import breaker_reading, read_capture
 
     out, bad = [], []
     for op_id, path, sha in jobs:
@@ -168,8 +168,7 @@ def _read(jobs, breaker):
             bad.append({"operation_id": op_id, "reason": "its capture file changed since it was recorded"})
             continue
         try:
-            out.append((op_id, read_capture(path, travel_channel=breaker.channels.get("travel", "travel"),
-                                            vibration_channel=breaker.channels.get("vibration", "vibration"))))
+            out.append((op_id, read_capture(path, **breaker_reading(breaker))))
         except CaptureError as exc:
             bad.append({"operation_id": op_id, "reason": f"its capture is unreadable: {exc}"})
     return out, bad

@@ -151,7 +151,7 @@ def capture_from_upload(blobs: dict[str, bytes], row, operation: str | None, cap
 def _text_capture_upload(data: bytes, name: str, row, operation: str | None, idempotency_key: str | None):
     """One text capture (a breaker-analyser export, or a CSV t_s,travel_rad[,vibration_g]) through
     the same reader as the CLI; an analyser record's operation is cut out here."""
-    from service.acquisition.capture_file import load_capture_bytes
+    from service.acquisition.capture_file import breaker_reading, load_capture_bytes
     from service.estimation.record import upload_operation
 
     if idempotency_key is not None and content_hash(data, b"") != idempotency_key:
@@ -159,8 +159,7 @@ def _text_capture_upload(data: bytes, name: str, row, operation: str | None, ide
                                  "(damaged in transit, or the wrong key)")
     breaker = crud.breaker_model(row)
     try:
-        capture = load_capture_bytes(data, name=name, travel_channel=breaker.channels.get("travel", "travel"),
-                                     vibration_channel=breaker.channels.get("vibration", "vibration"))
+        capture = load_capture_bytes(data, name=name, **breaker_reading(breaker))
         capture, kind = upload_operation(capture, breaker, operation)
         if capture.travel.size < 16:
             raise CaptureError(f"{name}: the record holds fewer than 16 samples")

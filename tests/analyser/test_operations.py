@@ -10,6 +10,7 @@ import pytest
 
 from drivers.capture_file import read_capture
 from service.acquisition.trigger import TriggerSettings, detect_capture
+from service.acquisition.capture_file import breaker_reading
 from service.breaker_file import load_breaker
 from service.estimation import fit_capture
 from service.estimation.window import FitError
@@ -26,7 +27,7 @@ def _record(tmp_path, **kw):
     path = tmp_path / "rec.csv"
     truth = write_export(path, Spec(**kw))
     b = load_breaker(GENERIC)
-    return read_capture(path, travel_channel=b.channels["travel"], rate=kw.get("rate") if not kw.get("header", True)
+    return read_capture(path, **breaker_reading(b), rate=kw.get("rate") if not kw.get("header", True)
                         else None), b, truth
 
 
@@ -103,7 +104,7 @@ def test_closing_fitted_when_the_breaker_file_has_the_cam(tmp_path):
     b = load_breaker(tmp_path / "ref-mm.toml")
     path = tmp_path / "rec.csv"
     truth = write_export(path, Spec())
-    cap = read_capture(path, travel_channel=b.channels["travel"])
+    cap = read_capture(path, **breaker_reading(b))
     r = fit_capture(cap, b, "close")
     for name in ("AC", "BC", "CC"):
         assert abs(r.parameters[name] - truth["params"][name]) < 4 * r.stderr[name] + 0.01 * truth["params"][name], name

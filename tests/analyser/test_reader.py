@@ -11,6 +11,7 @@ from drivers.analyser import looks_like_analyser, parse_analyser
 from drivers.capture import CaptureError
 from drivers.capture_file import load_capture_bytes, read_capture
 from service.acquisition.inspection import inspect_capture
+from service.acquisition.capture_file import breaker_reading
 from service.breaker_file import load_breaker
 from service.cli import main
 
@@ -47,7 +48,7 @@ def test_capture_in_rad_from_closed_and_aux_channels(tmp_path):
     path = tmp_path / "co.csv"
     write_export(path, Spec())
     b = load_breaker(GENERIC)
-    cap = read_capture(path, travel_channel=b.channels["travel"])
+    cap = read_capture(path, **breaker_reading(b))
     # 0 mm (open) -> 1 rad from closed; 182 mm (closed) -> 0 rad
     assert cap.travel[:20].mean() == pytest.approx(1.0, abs=0.01)
     assert cap.travel[1500] == pytest.approx(0.0, abs=0.01)
@@ -61,7 +62,7 @@ def test_bare_export_stroke_from_rest_levels(tmp_path):
     path = tmp_path / "bare.csv"
     write_export(path, Spec(header=False))
     b = load_breaker(GENERIC)
-    cap = read_capture(path, travel_channel=b.channels["travel"], rate=10_000)
+    cap = read_capture(path, **breaker_reading(b), rate=10_000)
     assert cap.meta["travel_map"]["stroke_source"] == "measured from the record's rest levels"
     assert cap.meta["travel_map"]["stroke_mm"] == pytest.approx(STROKE_MM, abs=1.0)
 
@@ -70,21 +71,21 @@ def test_bare_export_without_rate_refused_in_words(tmp_path):
     path = tmp_path / "bare.csv"
     write_export(path, Spec(header=False))
     with pytest.raises(CaptureError, match=r"bare\.csv: a bare analyser export .*--rate"):
-        read_capture(path, travel_channel=load_breaker(GENERIC).channels["travel"])
+        read_capture(path, **breaker_reading(load_breaker(GENERIC)))
 
 
 def test_rate_contradicting_header_refused(tmp_path):
     path = tmp_path / "h.csv"
     write_export(path, Spec())
     with pytest.raises(CaptureError, match=r"states 10 kS/s .* --rate gives 20 kS/s"):
-        read_capture(path, travel_channel=load_breaker(GENERIC).channels["travel"], rate=20_000)
+        read_capture(path, **breaker_reading(load_breaker(GENERIC)), rate=20_000)
 
 
 def test_mm_travel_without_breaker_mapping_refused(tmp_path, breaker):
     path = tmp_path / "co.csv"
     write_export(path, Spec())
     with pytest.raises(CaptureError, match=r"in mm; the breaker file's \[travel\]"):
-        read_capture(path, travel_channel=breaker.channels["travel"])
+        read_capture(path, **breaker_reading(breaker))
 
 
 def test_unwired_travel_channel_asked_for_is_refused(tmp_path):
@@ -97,7 +98,7 @@ def test_unwired_travel_channel_asked_for_is_refused(tmp_path):
 def test_several_wired_travels_the_first_is_used_and_noted(tmp_path):
     path = tmp_path / "co.csv"
     write_export(path, Spec(wired_travel=(1, 2, 3)))
-    cap = read_capture(path, travel_channel=load_breaker(GENERIC).channels["travel"])
+    cap = read_capture(path, **breaker_reading(load_breaker(GENERIC)))
     assert cap.meta["travel_channel"] == "T1"
     assert any("also wired: T2, T3" in w for w in cap.meta["warnings"])
 
@@ -124,7 +125,7 @@ def test_malformed_cell_named_by_line_and_column(tmp_path):
     path = _malformed(tmp_path, edit)
     line = _table_line(path.read_text().split("\n")) + 11
     with pytest.raises(CaptureError, match=rf"bad\.csv, line {line}, column 'Contact Travel T1 \(mm\)': '12\.x' is not a number"):
-        read_capture(path, travel_channel=load_breaker(GENERIC).channels["travel"])
+        read_capture(path, **breaker_reading(load_breaker(GENERIC)))
 
 
 def test_short_row_named_by_line(tmp_path):
@@ -134,7 +135,7 @@ def test_short_row_named_by_line(tmp_path):
     path = _malformed(tmp_path, edit)
     line = _table_line(path.read_text().split("\n")) + 6
     with pytest.raises(CaptureError, match=rf"bad\.csv, line {line}: \d+ values, but the table's column names"):
-        read_capture(path, travel_channel=load_breaker(GENERIC).channels["travel"])
+        read_capture(path, **breaker_reading(load_breaker(GENERIC)))
 
 
 def test_malformed_rate_in_header_named_by_line(tmp_path):
@@ -143,7 +144,7 @@ def test_malformed_rate_in_header_named_by_line(tmp_path):
         lines[i] = lines[i].replace("Sampling Speed (kC) :,10", "Sampling Speed (kC) :,ten")
     path = _malformed(tmp_path, edit)
     with pytest.raises(CaptureError, match=r"bad\.csv, line 8: 'Sampling Speed \(kC\)' should be a number, got 'ten'"):
-        read_capture(path, travel_channel=load_breaker(GENERIC).channels["travel"])
+        read_capture(path, **breaker_reading(load_breaker(GENERIC)))
 
 
 def test_table_without_rows_refused(tmp_path):
@@ -151,7 +152,7 @@ def test_table_without_rows_refused(tmp_path):
         del lines[_table_line(lines) + 1:]
     path = _malformed(tmp_path, edit)
     with pytest.raises(CaptureError, match=r"bad\.csv: the table \(from line \d+\) holds 0 sample rows"):
-        read_capture(path, travel_channel=load_breaker(GENERIC).channels["travel"])
+        read_capture(path, **breaker_reading(load_breaker(GENERIC)))
 
 
 def test_detected_by_content_not_name(tmp_path):
@@ -159,14 +160,14 @@ def test_detected_by_content_not_name(tmp_path):
     assert looks_like_analyser(text)
     path = tmp_path / "export.dump"     # an unknown suffix
     path.write_text(text)
-    cap = read_capture(path, travel_channel=load_breaker(GENERIC).channels["travel"])
+    cap = read_capture(path, **breaker_reading(load_breaker(GENERIC)))
     assert cap.sample_rate == 10_000
     assert not looks_like_analyser("t_s,travel_rad\n0,0\n1,1\n")
 
 
 def test_upload_bytes_through_the_same_reader():
     text, _ = export_text(Spec())
-    cap = load_capture_bytes(text.encode(), name="co.csv", travel_channel=load_breaker(GENERIC).channels["travel"])
+    cap = load_capture_bytes(text.encode(), name="co.csv", **breaker_reading(load_breaker(GENERIC)))
     assert cap.source == "upload:co.csv" and cap.meta["analyser"]["results"]["contact_travel_mm"]["T1"] == 182.0
 
 
