@@ -30,6 +30,9 @@ TEMPERATURE_PLAUSIBLE_C = (-60.0, 100.0)
 VIBRATION_UNITS = {"g": 1.0, "gn": 1.0, "m/s2": 1 / 9.80665, "m/s^2": 1 / 9.80665, "m/s²": 1 / 9.80665}
 
 MAX_SAMPLES = 50_000_000
+# hvcb's own COMTRADE (service/acquisition/comtrade_writer.py) names a recorded channel kept
+# beside the travel "aux <name>": never a breaker's travel or vibration channel name.
+AUX_PREFIX = "aux "
 
 
 def read_capture(path: str | Path, *, travel_channel: str = "travel", vibration_channel: str = "vibration",
@@ -197,7 +200,8 @@ def record_to_capture(record: Record, *, source: str, travel_channel: str = "tra
     cap = Capture(travel=travel, sample_rate=float(record.sample_rate), vibration=vibration,
                   start_time=record_start_time(record), source=source,
                   travel_limits=_channel_limits(ch_t, TRAVEL_UNITS), vibration_limits=vib_limits,
-                  meta={"warnings": notes, "encoding": record.encoding, **_kept_meta(record.hdr_text)})
+                  meta={"warnings": notes, "encoding": record.encoding, **_kept_meta(record.hdr_text)},
+                  aux=_kept_aux(record, names))
     if temperature_channel:
         temp = _temperature(record, names, temperature_channel, source, notes)
         if temp is not None:
@@ -243,6 +247,29 @@ def _kept_meta(hdr_text: str | None) -> dict:
     except (ValueError, AttributeError):
         return {}
     return {k: meta[k] for k in _KEPT if isinstance(meta, dict) and k in meta}
+
+
+def _kept_aux(record: Record, names: list) -> tuple:
+    """The recorded channels hvcb's own .hdr lists (``aux``: name, kind, unit), read back from
+    the .cfg's ``aux <name>`` channels; none for anyone else's COMTRADE."""
+    text = record.hdr_text
+    if not text or not text.lstrip().startswith("{"):
+        return ()
+    import json
+
+    try:
+        listed = json.loads(text).get("aux") or []
+    except (ValueError, AttributeError):
+        return ()
+    out = []
+    for entry in listed if isinstance(listed, list) else []:
+        if not isinstance(entry, dict) or not {"name", "kind", "unit"} <= set(entry):
+            continue
+        i = _find(names, AUX_PREFIX + str(entry["name"]))
+        if i is not None:
+            out.append(AuxChannel(str(entry["name"]), str(entry["kind"]), str(entry["unit"]),
+                                  record.uniform_channel(i)))
+    return tuple(out)
 
 
 def _channel_limits(ch, table) -> tuple | None:

@@ -49,3 +49,20 @@ def minmax_buckets(t, y, buckets: int) -> tuple[list, list, list]:
     lo = np.minimum.reduceat(y, edges[:-1])
     hi = np.maximum.reduceat(y, edges[:-1])
     return t[edges[:-1]].tolist(), lo.tolist(), hi.tolist()
+
+
+def shared_minmax_indices(series, points: int) -> np.ndarray:
+    """Sorted sample indices that keep every bucket's minimum and maximum of each of several
+    sample-aligned series (travel, coil currents, DCRM), so they share one time axis.
+
+    The buckets per series are ``points // (2·len(series))``, so about ``points`` indices come
+    back in all (at most ``points + 2``); all of them when the series are that short.
+    """
+    series = [np.asarray(y, dtype=float) for y in series]
+    if not series:
+        return np.arange(0)
+    n = series[0].size
+    buckets = max(1, (points - 2) // (2 * len(series)))
+    if n <= points:
+        return np.arange(n)
+    return np.unique(np.concatenate([minmax_indices(y, buckets) for y in series]))

@@ -1,7 +1,9 @@
 """Writing captures as IEEE C37.111-2013 COMTRADE (.cfg + .dat, and a free-text .hdr).
 
 Formats: ASCII, BINARY (int16), BINARY32 (int32), FLOAT32. Channels: ``travel`` [rad] and
-``vibration`` [g], scaled ``value = a·code + b`` over the sensor range (or the data range where
+``vibration`` [g], then each recorded channel of ``Capture.aux`` (an analyser's coil currents,
+travel as recorded, DCRM) as ``aux <name>`` in its own unit, listed with its kind and unit in
+the .hdr (``drivers.capture_file`` reads them back); each channel scaled ``value = a·code + b`` over the sensor range (or the data range where
 the data exceed it), so a clipped channel reads as sitting at its limits. Time stamps are in µs
 (timemult 1), but readers must use the sample-rate line, as the standard requires.
 
@@ -21,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from drivers.capture import Capture
+from drivers.capture_file import AUX_PREFIX
 from service.durable import fsync_dir, write_durably
 
 FORMATS = ("ASCII", "BINARY", "BINARY32", "FLOAT32")
@@ -60,6 +63,8 @@ def write_comtrade(capture: Capture, directory: str | Path, name: str, *, format
     if capture.vibration is not None:
         channels.append(("vibration", "g", np.asarray(capture.vibration, dtype=float),
                          capture.vibration_limits))
+    channels += [(f"{AUX_PREFIX}{x.name}", _ascii_unit(x.unit), np.asarray(x.data, dtype=float), None)
+                 for x in capture.aux]
     n = channels[0][2].size
     if n == 0:
         raise ValueError("cannot write an empty capture")
@@ -147,9 +152,16 @@ def stored_analyser_results(cfg_path) -> dict | None:
 
 
 def _header(capture: Capture) -> dict:
-    """Free-text .hdr content: what the .cfg cannot say (flags, window, stream position)."""
+    """Free-text .hdr content: what the .cfg cannot say (flags, window, stream position, the
+    recorded channels' kinds and units)."""
     return {"source": capture.source, "flags": list(capture.flags),
-            "first_sample_index": int(capture.first_sample_index), "meta": capture.meta}
+            "first_sample_index": int(capture.first_sample_index), "meta": capture.meta,
+            "aux": [{"name": x.name, "kind": x.kind, "unit": x.unit} for x in capture.aux]}
+
+
+def _ascii_unit(unit: str) -> str:
+    """A unit as the .cfg (ASCII) can hold it: µΩ -> uOhm; the .hdr keeps the real one."""
+    return unit.replace("µ", "u").replace("μ", "u").replace("Ω", "Ohm").encode("ascii", "replace").decode()
 
 
 def _stamp(t: datetime) -> str:

@@ -14,7 +14,7 @@ from sqlalchemy.exc import IntegrityError
 
 from drivers.capture import CaptureError
 from service.errors import redact_paths
-from service.jobs.upload import UploadRefused, ingest_upload, parse_upload
+from service.jobs.upload import UploadRefused, further_operations, ingest_upload, parse_upload
 from service.storage import crud
 from service.storage.crud_alarms import annunciated
 from service.storage.fit_curve import fit_curve
@@ -225,7 +225,12 @@ def get_curve(operation_id: OperationId, session: SessionDep, _: ReaderDep,
         cap = read_stored_capture(op.capture_path, breaker)
     except CaptureError as exc:
         raise HTTPException(410, f"the capture file is no longer readable: {redact_paths(str(exc))}") from None
-    idx = np.unique(np.linspace(0, cap.travel.size - 1, min(points, cap.travel.size)).astype(int))
+    if cap.aux:  # the recorded channels share the travel's time axis: one min/max decimation of all
+        from service.acquisition.recorded_channels import channel_indices
+
+        idx = channel_indices(cap, points)
+    else:
+        idx = np.unique(np.linspace(0, cap.travel.size - 1, min(points, cap.travel.size)).astype(int))
     t, measured = cap.t[idx], cap.travel[idx]
     fitted = residual = window = None
     curve = fit_curve(fit, cap.t, crud.breaker_model(session.get(BreakerRow, op.breaker_id))) if fit is not None else None
@@ -237,9 +242,12 @@ def get_curve(operation_id: OperationId, session: SessionDep, _: ReaderDep,
         residual = [None if not np.isfinite(v) else round(float(v), 7) for v in measured - f]
         if fit.window_start_s is not None:
             window = [fit.window_start_s, fit.window_end_s]
+    from service.acquisition.recorded_channels import operation_events, recorded_channels
+
     return s.CurvePublic(operation_id=op.id, kind=op.kind, t_s=[round(float(v), 9) for v in t],
                          measured_rad=[round(float(v), 7) for v in measured], fitted_rad=fitted,
-                         residual_rad=residual, window_s=window)
+                         residual_rad=residual, window_s=window, channels=recorded_channels(cap, idx),
+                         events=operation_events(cap, op.kind, breaker.stroke) if cap.aux else None)
 
 
 # -- uploads -----------------------------------------------------------------------------------
@@ -251,7 +259,10 @@ def _duplicate(session, breaker_id: int, key: str) -> s.UploadAccepted | None:
     if op.breaker_id != breaker_id:
         raise HTTPException(409, f"this capture (Idempotency-Key {key[:12]}...) is stored under breaker "
                                  f"{op.breaker_id}, not {breaker_id}")
-    return s.UploadAccepted(operation_id=op.id, capture_key=key, operation=op.kind, status="duplicate")
+    ops = [op, *further_operations(session, key)]
+    return s.UploadAccepted(operation_id=op.id, capture_key=key, operation=op.kind, status="duplicate",
+                            operations=[s.UploadedOperation(operation_id=o.id, capture_key=o.capture_key, operation=o.kind)
+                                        for o in ops])
 
 
 def _upload_context(session, breaker_id: int, idempotency_key: str | None):
@@ -300,8 +311,11 @@ async def upload_capture(breaker_id: BreakerId, request: Request, response: Resp
         upload.capture.meta["temperature_c"], upload.capture.meta["temperature_source"] = temperature_c, source
     result = await run_in_threadpool(ingest_upload, monitor, settings, upload, breaker_id=breaker_id, source=source,
                                      capture_key=idempotency_key)
+    done = [result, *result.more]
     return s.UploadAccepted(operation_id=result.operation_id, capture_key=result.capture_key, operation=upload.kind,
-                            status="spooled" if result.spooled else "queued")
+                            status="spooled" if result.spooled else "queued",
+                            operations=[s.UploadedOperation(operation_id=r.operation_id, capture_key=r.capture_key,
+                                                            operation=kind) for r, (_, kind) in zip(done, upload.operations)])
 
 
 # -- alarms ------------------------------------------------------------------------------------

@@ -7,6 +7,8 @@ from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, PlainSerializer, RootModel
 
+from .schemas_record import OperationEvents, RecordedChannel, UploadedOperation
+
 
 def iso_z(t: datetime | None) -> str | None:
     if t is None:
@@ -116,6 +118,10 @@ class CurvePublic(BaseModel):
     fitted_rad: list[float | None] | None = Field(None, description="fitted travel [rad]; null before the fit")
     residual_rad: list[float | None] | None = Field(None, description="measured − fitted [rad]")
     window_s: list[float] | None = None
+    channels: dict[str, RecordedChannel] = Field(
+        default_factory=dict, description="every other recorded channel (an analyser's coil currents, DCRM) "
+                                          "in its own unit; t_s is then the min/max decimation of them all")
+    events: OperationEvents | None = Field(None, description="command and contact instants (analyser records)")
 
 
 class UploadAccepted(BaseModel):
@@ -125,6 +131,9 @@ class UploadAccepted(BaseModel):
     operation: Literal["open", "close"]
     status: Literal["queued", "spooled", "duplicate"] = Field(
         description="duplicate: a capture with this Idempotency-Key was stored before; this is its operation")
+    operations: list[UploadedOperation] = Field(
+        default_factory=list, description="every operation stored from the upload, in the record's order "
+                                          "(a close-open analyser record: its closing and its opening)")
 
 
 # -- health and trends -------------------------------------------------------------------------

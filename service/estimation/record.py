@@ -38,19 +38,18 @@ def operation_capture(record: Capture, breaker: Breaker, operation: str, index: 
     return op.capture, offset, picked
 
 
-def upload_operation(record: Capture, breaker: Breaker, operation: str | None):
-    """``(capture, kind)`` to store for an upload: an analyser record's one operation (the
-    asked kind's first, or the only one), any other capture as it is with ``operation``."""
+def upload_operations(record: Capture, breaker: Breaker, operation: str | None) -> list:
+    """``[(capture, kind), ...]`` to store for an upload, in the record's order: every operation
+    of an analyser record (a CO record: its closing and its opening), or only those of the kind
+    ``operation`` names; any other capture as it is, with ``operation`` (None: inferred later)."""
     if record.vibration is not None or not record.aux_of("coil_current"):
-        return record, operation
+        return [(record, operation)]
     found = detect_from_coils(record, TriggerSettings.from_breaker(breaker))
-    kinds = [op.operation for op in found]
     if not found:
         raise FitError(f"{record.source or 'capture'}: no opening or closing found in this analyser record")
-    if operation is None:
-        if len(set(kinds)) > 1:
-            raise FitError(f"{record.source or 'capture'}: the record holds {'-'.join(k[0].upper() for k in kinds)} "
-                           "operations; say which to store with operation=open or operation=close")
-        operation = kinds[0]
-    capture, _, _ = operation_capture(record, breaker, operation, 0)
-    return capture, operation
+    picked = [(op.capture, op.operation) for op in found if operation in (None, op.operation)]
+    if not picked:
+        listing = "-".join(op.operation[0].upper() for op in found)
+        raise FitError(f"{record.source or 'capture'}: no {operation_word(operation)} found in this record "
+                       f"(it holds {listing})")
+    return picked

@@ -31,6 +31,7 @@ class IngestResult:
     capture_key: str
     operation_id: int | None  # None: spooled, the database was unavailable
     spooled: bool
+    more: tuple = ()  # the further operations of one uploaded record (IngestResult each)
 
 
 def infer_operation(capture: Capture) -> str:

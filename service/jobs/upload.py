@@ -95,8 +95,14 @@ class Upload:
 
     capture: object
     kind: str
-    files: dict | None  # None: a text record, stored as the operation cut from it
+    files: dict | None  # None: a text record, stored as the operations cut from it
     name: str
+    more: tuple = ()  # further (capture, kind) of the same record (a CO record's opening)
+
+    @property
+    def operations(self) -> tuple:
+        """Every (capture, kind) this upload stores, in the record's order."""
+        return ((self.capture, self.kind),) + tuple(self.more)
 
 
 def capture_from_upload(blobs: dict[str, bytes], row, operation: str | None, cap_bytes: int,
@@ -150,9 +156,10 @@ def capture_from_upload(blobs: dict[str, bytes], row, operation: str | None, cap
 
 def _text_capture_upload(data: bytes, name: str, row, operation: str | None, idempotency_key: str | None):
     """One text capture (a breaker-analyser export, or a CSV t_s,travel_rad[,vibration_g]) through
-    the same reader as the CLI; an analyser record's operation is cut out here."""
+    the same reader as the CLI; an analyser record's operations are cut out here, each stored
+    as its own operation (``operation`` keeps only that kind)."""
     from service.acquisition.capture_file import breaker_reading, load_capture_bytes
-    from service.estimation.record import upload_operation
+    from service.estimation.record import upload_operations
 
     if idempotency_key is not None and content_hash(data, b"") != idempotency_key:
         raise UploadRefused(422, "the Idempotency-Key is not the content hash of the uploaded file "
@@ -160,19 +167,20 @@ def _text_capture_upload(data: bytes, name: str, row, operation: str | None, ide
     breaker = crud.breaker_model(row)
     try:
         capture = load_capture_bytes(data, name=name, **breaker_reading(breaker))
-        capture, kind = upload_operation(capture, breaker, operation)
-        if capture.travel.size < 16:
-            raise CaptureError(f"{name}: the record holds fewer than 16 samples")
         from service.jobs.ingest import infer_operation
 
-        kind = kind or infer_operation(capture)
+        ops = []
+        for capture, kind in upload_operations(capture, breaker, operation):
+            if capture.travel.size < 16:
+                raise CaptureError(f"{name}: the record holds fewer than 16 samples")
+            ops.append((capture, kind or infer_operation(capture)))
     except ValueError as exc:  # CaptureError, FitError: the reader's words
         raise UploadRefused(422, str(exc) if name in str(exc) else f"{name}: {exc}") from None
     except Exception:  # a reader bug must not become a 500 for the client
         raise UploadRefused(422, f"{name}: the capture could not be read") from None
-    # The operation cut from the record is stored in hvcb's COMTRADE, the analyser's own results
-    # in its .hdr (service.acquisition.comtrade_writer): files=None.
-    return Upload(capture, kind, None, name)
+    # Each operation cut from the record is stored in hvcb's COMTRADE with every recorded channel,
+    # the analyser's own results in its .hdr (service.acquisition.comtrade_writer): files=None.
+    return Upload(ops[0][0], ops[0][1], None, name, more=tuple(ops[1:]))
 
 
 async def parse_upload(state, files, row, operation: str | None, idempotency_key: str | None = None) -> Upload:
@@ -193,14 +201,42 @@ async def parse_upload(state, files, row, operation: str | None, idempotency_key
         return await asyncio.to_thread(capture_from_upload, blobs, row, operation, cap_bytes, idempotency_key)
 
 
+def operation_key(key: str, k: int) -> str:
+    """The capture key of a record's ``k``-th operation (0: ``key`` itself; then a SHA-256 of
+    it and ``k``, 64 hex digits like an Idempotency-Key): a retried CO upload finds both."""
+    import hashlib
+
+    return key if k == 0 else hashlib.sha256(f"{key}:{k}".encode()).hexdigest()
+
+
+def further_operations(session, key: str) -> list:
+    """The operations stored after the first from the record uploaded under ``key``."""
+    out, k = [], 1
+    while (op := crud.get_operation_by_key(session, capture_key=operation_key(key, k))) is not None:
+        out.append(op)
+        k += 1
+    return out
+
+
 def ingest_upload(monitor, settings, upload: Upload, *, breaker_id: int, source: str, capture_key: str | None):
-    """Store the files as sent (fsynced) and hand the operation to the monitor (worker thread)."""
+    """Store the files as sent (fsynced) and hand the operations to the monitor (worker thread).
+    Every operation is durable before this returns; the first one's result comes back, the
+    others' in its ``more``."""
+    from dataclasses import replace
+
     from service.storage.spool import Spool, write_capture_bytes
 
     key = capture_key or Spool.new_key()
     if upload.files is None:
-        return monitor.ingest(upload.capture, breaker_id=breaker_id, operation=upload.kind, source=source,
-                              capture_key=key)
+        results = []
+        first_meta = upload.capture.meta
+        for k, (capture, kind) in enumerate(upload.operations):
+            for m in ("temperature_c", "temperature_source"):  # one record, one temperature
+                if m in first_meta:
+                    capture.meta[m] = first_meta[m]
+            results.append(monitor.ingest(capture, breaker_id=breaker_id, operation=kind, source=source,
+                                          capture_key=operation_key(key, k)))
+        return replace(results[0], more=tuple(results[1:]))
     now = utcnow()
     path = write_capture_bytes(upload.files, settings.capture_dir / now.strftime("%Y") / now.strftime("%m%d"), key)
     return monitor.ingest(upload.capture, breaker_id=breaker_id, operation=upload.kind, source=source,
