@@ -1,35 +1,47 @@
 # The README's two commands: `make run` and `make test`. Both set up everything they need.
+# `make run` installs the core only (no torch, no GPL IEC 61850 library); `make test` adds the
+# extras the tests need (pyproject.toml [project.optional-dependencies], named in the README).
+SHELL  := bash
 PYTHON ?= python3
 VENV   := .venv
 PY     := $(VENV)/bin/python
-PIP    := $(VENV)/bin/pip
-STAMP  := $(VENV)/.installed
-EXTRAS ?= dev,studies,iec61850,plots,docs
+PIP    := $(PY) -m pip install -q --disable-pip-version-check
+CORE   := $(VENV)/.installed-core
+FULL   := $(VENV)/.installed-test
+TEST_EXTRAS ?= dev,studies,iec61850,plots,docs
+RUN_ARGS ?=
 
 .PHONY: run test setup bench docs docs-serve clean
 
-$(STAMP): pyproject.toml
-	test -x $(PY) || $(PYTHON) -m venv $(VENV)
-	$(PIP) install -q --disable-pip-version-check --upgrade pip 2>&1 | grep -v "^WARNING: Location" || true
-	$(PIP) install -q --disable-pip-version-check -e ".[$(EXTRAS)]" 2>&1 | grep -v "^WARNING: Location" || true
+$(PY):
+	$(PYTHON) -m venv $(VENV)
+
+# pip's "Location" warning (the venv's scripts dir is not on PATH) is expected: the README says so.
+$(CORE): pyproject.toml | $(PY)
+	$(PIP) -e . 2>&1 | grep -v "^WARNING: Location\|^WARNING: The script" ; test $${PIPESTATUS[0]} -eq 0
 	$(PY) -c "import service, numba, cma, comtrade"
-	touch $(STAMP)
+	touch $@
 
-setup: $(STAMP)
+$(FULL): pyproject.toml | $(PY)
+	$(PIP) -e ".[$(TEST_EXTRAS)]" 2>&1 | grep -v "^WARNING: Location\|^WARNING: The script" ; test $${PIPESTATUS[0]} -eq 0
+	$(PY) -c "import service, numba, cma, comtrade, pytest"
+	touch $(CORE) $@
 
-run: $(STAMP)
-	$(PY) -m service.cli demo
+setup: $(FULL)
 
-test: $(STAMP)
+run: $(CORE)
+	$(PY) -m service.cli demo $(RUN_ARGS)
+
+test: $(FULL)
 	$(PY) -m pytest -q $(PYTEST_ARGS)
 
-docs: $(STAMP)
+docs: $(FULL)
 	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict
 
-docs-serve: $(STAMP)
+docs-serve: $(FULL)
 	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs serve --dev-addr 127.0.0.1:8001
 
-bench: $(STAMP)
+bench: $(CORE)
 	$(PY) bench/fit_speed.py
 
 clean:

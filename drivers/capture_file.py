@@ -337,7 +337,7 @@ def parse_csv(text: str, *, source: str = "csv") -> Capture:
     try:
         data = np.loadtxt(io.StringIO(body), delimiter=",", ndmin=2)
     except ValueError:
-        raise CaptureError(f"{source}: {_first_bad_row(lines, len(header))}") from None
+        raise CaptureError(f"{source}: {first_bad_row(lines, len(header))}") from None
     if data.shape[0] < 2:
         raise CaptureError(f"{source}: fewer than 2 samples")
     if data.shape[1] != len(header):
@@ -355,7 +355,7 @@ def parse_csv(text: str, *, source: str = "csv") -> Capture:
     return cap
 
 
-def _first_bad_row(lines: list, width: int) -> str:
+def first_bad_row(lines: list, width: int) -> str:
     for i, line in enumerate(lines[1:], 2):
         parts = [p.strip() for p in line.strip().rstrip(",").split(",")]
         if len(parts) != width:

@@ -263,7 +263,7 @@ class Settings(BaseSettings):
         path = _config_file.get() or DEFAULT_CONFIG
         sources = [init_settings, env_settings]
         if path.is_file():
-            sources.append(_TomlSource(settings_cls, toml_file=path))
+            sources.append(TomlSource(settings_cls, toml_file=path))
         return tuple(sources)
 
     @field_validator("bootstrap_admin_key")
@@ -350,7 +350,7 @@ class Settings(BaseSettings):
         return self.data_dir / "admin.key"
 
 
-class _TomlSource(TomlConfigSettingsSource):
+class TomlSource(TomlConfigSettingsSource):
     """TOML source whose relative breaker paths are resolved against the file's directory."""
 
     def __init__(self, settings_cls, toml_file: Path):
@@ -374,3 +374,18 @@ def load_settings(config_file: str | Path | None = None, **overrides) -> Setting
         return Settings(**overrides)
     finally:
         _config_file.reset(token)
+
+
+def command_settings(args, **overrides) -> Settings:
+    """The settings of an ``hvcb`` subcommand: its ``--config`` file (if any) and the ``overrides``
+    that are not None. Bad values raise ``UserError`` that lists each field and what is wrong."""
+    from pydantic import ValidationError
+
+    from service.errors import UserError
+
+    overrides = {k: v for k, v in overrides.items() if v is not None}
+    try:
+        return load_settings(getattr(args, "config", None), **overrides)
+    except ValidationError as exc:
+        raise UserError("bad settings: " + "; ".join(f"{'.'.join(map(str, e['loc']))}: {e['msg']}"
+                                                     for e in exc.errors())) from None

@@ -79,7 +79,7 @@ def _settings(args):
 
 def run_detect(args) -> int:
     from .capture_file import breaker_reading, read_capture
-    from .trigger import detect_capture
+    from .recording import detect_capture
 
     breaker, settings = _settings(args)
     recording = read_capture(args.stream, **breaker_reading(breaker), rate=args.rate)

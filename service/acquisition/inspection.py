@@ -174,9 +174,9 @@ def _inspect_csv(path: Path, encoding: str | None) -> dict:
     try:
         data = np.loadtxt(io.StringIO("\n".join(lines[1:])), delimiter=",", ndmin=2)
     except ValueError:
-        from drivers.capture_file import _first_bad_row
+        from drivers.capture_file import first_bad_row
 
-        raise CaptureError(f"{path}: {_first_bad_row(lines, len(header))}") from None
+        raise CaptureError(f"{path}: {first_bad_row(lines, len(header))}") from None
     if data.shape[0] == 0:
         raise CaptureError(f"{path}: the file holds a header but no samples")
     if data.shape[1] != len(header):

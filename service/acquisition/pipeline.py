@@ -16,7 +16,8 @@ from pathlib import Path
 
 from drivers.capture import Capture
 from .comtrade_writer import write_comtrade
-from .trigger import DetectedOperation, TriggerDetector, TriggerSettings, detect_capture
+from .recording import detect_capture
+from .trigger import DetectedOperation, TriggerDetector, TriggerSettings
 
 CAPTURE_FLAG = "capture"  # SampleBlock flag: a whole DAQ-triggered capture (Modbus), not a stream slice
 NO_VIBRATION_FLAG = "no_vibration"  # SampleBlock flag: the source has no vibration channel
@@ -155,7 +156,8 @@ async def capture_records(paths, breaker, out_dir: str | Path, *, on_capture: Ca
     is written as COMTRADE and handed on like a triggered capture. The replay of an edge agent
     uses it for analyser exports; the files are read with the breaker's channel mapping."""
     from .capture_file import breaker_reading, read_capture
-    from .trigger import TriggerSettings, detect_capture
+    from .recording import detect_capture
+    from .trigger import TriggerSettings
 
     out_dir = Path(out_dir)
     stats = CaptureStats()

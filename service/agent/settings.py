@@ -12,7 +12,7 @@ from pathlib import Path
 from pydantic import BaseModel, Field, field_validator, model_validator
 from pydantic_settings import BaseSettings, PydanticBaseSettingsSource, SettingsConfigDict
 
-from service.settings import AcquisitionSettings, _TomlSource, acquisition_list, check_daq_list
+from service.settings import AcquisitionSettings, TomlSource, acquisition_list, check_daq_list
 
 _agent_file: contextvars.ContextVar[Path | None] = contextvars.ContextVar("hvcb_agent_file", default=None)
 
@@ -71,7 +71,7 @@ class AgentSettings(BaseSettings):
         path = _agent_file.get()
         sources = [init_settings, env_settings]
         if path is not None and path.is_file():
-            sources.append(_TomlSource(settings_cls, toml_file=path))
+            sources.append(TomlSource(settings_cls, toml_file=path))
         return tuple(sources)
 
     @field_validator("acquisition", mode="before")

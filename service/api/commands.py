@@ -43,17 +43,9 @@ def register(sub) -> None:
 
 
 def _settings(args, **overrides):
-    from pydantic import ValidationError
+    from service.settings import command_settings
 
-    from service.cli import UserError
-    from service.settings import load_settings
-
-    overrides = {k: v for k, v in overrides.items() if v is not None}
-    try:
-        return load_settings(getattr(args, "config", None), **overrides)
-    except ValidationError as exc:
-        raise UserError("bad settings: " + "; ".join(f"{'.'.join(map(str, e['loc']))}: {e['msg']}"
-                                                     for e in exc.errors())) from None
+    return command_settings(args, **overrides)
 
 
 def _migrate(settings) -> None:

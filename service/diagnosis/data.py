@@ -12,7 +12,7 @@ from ..mechanics.breaker import Breaker
 from ..mechanics.coordinates import operation_coordinate
 from ..prototypes.a import EFFECT_NAMES, effect_vector
 from ..prototypes.a.sensor_nonlinearity import sensor_reading
-from ..prototypes.a.simulate import _fast, closing_constants, opening_constants
+from ..prototypes.a.simulate import integrate, closing_constants, opening_constants
 
 BLOCK = 16               # samples per block (128 kHz -> 8 kHz): the noise of a block mean is σ/4
 FIT_DT = 1.0 / 16_000    # RK4 step inside the fits [s]; validated against exact in tests/prototype
@@ -79,11 +79,11 @@ def simulate_effects(operation: str, params: dict, t, breaker: Breaker, effects=
     if not np.all(np.isfinite(p)) or p[0 if operation == "open" else 1] <= 0:
         return np.full_like(t, np.nan), False
     if operation == "open":
-        theta, _, _ = _fast(0, np.zeros(4), p, e, opening_constants(breaker), None, t, dt_max)
+        theta, _, _ = integrate(0, np.zeros(4), p, e, opening_constants(breaker), None, t, dt_max)
     else:
         c = closing_constants(breaker)
         x0 = np.array([c[3], 0.0, float(breaker.cam.theta2[0]), 0.0])
-        theta, _, _ = _fast(1, x0, p, e, c, breaker.cam, t, dt_max)
+        theta, _, _ = integrate(1, x0, p, e, c, breaker.cam, t, dt_max)
     for name, s, sh in effects:
         if name == "sensor_nonlinearity" and s != 0.0:
             k = len(EFFECT_NAMES) + 3 * EFFECT_NAMES.index(name)

@@ -13,7 +13,10 @@ from numba import njit
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _cam(theta1, k, x, y, c):
+def cam_at(theta1, k, x, y, c):
+    """The cam profile's cubic spline at ``theta1`` [rad]: h [rad], h' [-], h'' [1/rad] and the
+    segment index (``k`` is the hint to start the search from; knots ``x``, values ``y``,
+    coefficients ``c``). Flat beyond the table's ends."""
     n = x.size
     if theta1 <= x[0]:
         return y[0], 0.0, 0.0, 0
@@ -32,7 +35,7 @@ def _cam(theta1, k, x, y, c):
 
 @njit(cache=True, inline="always", error_model="numpy")
 def _accel(th, om, k, AC, BC, CC, DC, xC0, rC, d, x, y, c):
-    h, h1, h2, k = _cam(th, k, x, y, c)
+    h, h1, h2, k = cam_at(th, k, x, y, c)
     ct = math.cos(th)
     g = (xC0 - rC * (1.0 - ct)) * math.sin(th) / (d + rC * ct)
     return (AC * g - BC * h1 * (h2 * om * om + CC + DC * h)) / (1.0 + BC * h1 * h1), k
@@ -88,7 +91,7 @@ def integrate_closing_batch(P, t, tau, dt_max, xC0, rC, d, theta1_start, x, y, c
                     if om <= 0.0 and math.isnan(t_peak[i]) and tc > 0.0:
                         stalled[i] = True
                 tc = tj
-            h, h1, _h2, k = _cam(th, k, x, y, c)
+            h, h1, _h2, k = cam_at(th, k, x, y, c)
             theta2[i, j] = h
             omega2[i, j] = h1 * om
     return theta2, omega2, t_peak, stalled

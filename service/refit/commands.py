@@ -55,7 +55,7 @@ def _check_database(engine, url: str) -> None:
 
 
 def cmd_refit(args) -> int:
-    from service.api.commands import _settings
+    from service.settings import command_settings
     from service.jobs.fit import JobOptions
     from service.progress import progress
     from service.storage.db import make_engine, session_factory
@@ -68,7 +68,7 @@ def cmd_refit(args) -> int:
         raise UserError("--workers must be at least 1")
     if args.batch_size is not None and args.batch_size < 1:
         raise UserError("--batch-size must be at least 1")
-    settings = _settings(args)
+    settings = command_settings(args)
     engine = make_engine(settings.sqlalchemy_url)
     Session = session_factory(engine)
     _check_database(engine, settings.sqlalchemy_url)

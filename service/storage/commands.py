@@ -22,9 +22,9 @@ def register(sub) -> None:
 
 
 def _settings(args):
-    from service.api.commands import _settings as load
+    from service.settings import command_settings
 
-    return load(args)
+    return command_settings(args)
 
 
 def cmd_prune(args) -> int:

@@ -12,7 +12,7 @@ import zipfile
 from datetime import timedelta
 from typing import Annotated
 
-from fastapi import APIRouter, Depends, File, Form, HTTPException, Path as PathParam, Query, Request, UploadFile
+from fastapi import APIRouter, Depends, File, Form, HTTPException, Query, Request, UploadFile
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import JSONResponse, RedirectResponse, Response
 from sqlalchemy.exc import IntegrityError
@@ -25,40 +25,15 @@ from service.storage.models import DiagnosisRow, utcnow
 
 from . import auth
 from .auth import WebAuthError, WebUser
+from .handlers import (MAX_ID, AdminPost, Id, OperatorPost, Reader, ReaderPost, back, db_session,
+                       form_temperature, not_found, safe_next)
 from .render import page, security_headers
 from .series import CHARACTERISTICS, operation_curves, sparkline
 from .trends import CLOSING, OPENING, UNITS
 
 router = APIRouter(include_in_schema=False)
 
-MAX_ID = 2_147_483_647
-Id = Annotated[int, PathParam(ge=1, le=MAX_ID)]
 PER_PAGE = 50
-
-Reader = Annotated[WebUser, Depends(auth.require_page("reader"))]
-
-
-def poster(role: str):
-    """Dependency of a POST: signed in with ``role`` or more, and a valid CSRF token."""
-
-    async def dependency(request: Request, user: WebUser = Depends(auth.require_page(role))) -> WebUser:
-        await auth.require_csrf(request, user)
-        return user
-
-    return dependency
-
-
-ReaderPost = Annotated[WebUser, Depends(poster("reader"))]
-OperatorPost = Annotated[WebUser, Depends(poster("operator"))]
-AdminPost = Annotated[WebUser, Depends(poster("admin"))]
-
-
-def _session(request: Request):
-    return request.app.state.Session()
-
-
-def _not_found(what: str):
-    raise HTTPException(404, f"no {what}")
 
 
 # -- sign-in -----------------------------------------------------------------------------------
@@ -69,17 +44,10 @@ def signin_form(request: Request, next: str = "/"):
 
 def _signin_page(request: Request, *, next: str = "/", error: str | None = None, status: int = 200):
     cookie, csrf = request.app.state.web_signer.pre_cookie()
-    resp = page(request, "signin.html", {"next": _safe_next(next), "error": error, "signin_csrf": csrf},
+    resp = page(request, "signin.html", {"next": safe_next(next), "error": error, "signin_csrf": csrf},
                 status_code=status)
     auth.set_cookie(resp, request, auth.PRE_COOKIE, cookie, max_age=auth.PRE_MAX_AGE_S, path="/signin")
     return resp
-
-
-def _safe_next(target: str | None) -> str:
-    """Only a local path: never redirect to another site."""
-    if not target or not target.startswith("/") or target.startswith("//") or "\\" in target:
-        return "/"
-    return target
 
 
 @router.post("/signin")
@@ -110,7 +78,7 @@ async def signin(request: Request, api_key: Annotated[str, Form(max_length=400)]
         throttle.succeeded(address)
     # a new session on every sign-in; the one this browser carried before ends now (D15)
     await run_in_threadpool(auth.end_presented_session, request)
-    resp = RedirectResponse(_safe_next(next), status_code=303)
+    resp = RedirectResponse(safe_next(next), status_code=303)
     auth.set_cookie(resp, request, auth.COOKIE, cookie, max_age=int(request.app.state.web_signer.lifetime_s))
     resp.delete_cookie(auth.PRE_COOKIE, path="/signin")
     security_headers(resp)
@@ -172,7 +140,7 @@ def _fleet(session, settings) -> list[dict]:
 @router.get("/")
 def fleet(request: Request, user: Reader):
     settings = request.app.state.settings
-    with _session(request) as session:
+    with db_session(request) as session:
         rows = _fleet(session, settings)
     resp = page(request, "fleet.html", {"rows": rows, "nav": "fleet"})  # rendered with the connection back
     # engineers go from here to a breaker: have its trends ready (a long history takes a moment)
@@ -186,8 +154,8 @@ def fleet(request: Request, user: Reader):
 def breaker_page(request: Request, breaker_id: Id, user: Reader,
                  page_no: Annotated[int, Query(alias="page", ge=1, le=10**6)] = 1):
     settings = request.app.state.settings
-    with _session(request) as session:
-        b = crud.get_breaker(session, breaker_id=breaker_id) or _not_found(f"breaker {breaker_id}")
+    with db_session(request) as session:
+        b = crud.get_breaker(session, breaker_id=breaker_id) or not_found(f"breaker {breaker_id}")
         alarms = crud.list_alarms(session, state="active", breaker_id=b.id)
         ops, total = crud_web.operations_page(session, breaker_id=b.id, page=page_no, per_page=PER_PAGE)
         pages = max(1, -(-total // PER_PAGE))
@@ -207,8 +175,8 @@ def breaker_page(request: Request, breaker_id: Id, user: Reader,
 def breaker_trends(request: Request, breaker_id: Id, user: Reader):
     """Every parameter with its CI, the baseline, the drift statistic and alarm markers; the
     travel characteristics. One request for the whole breaker page (service/web/trends.py)."""
-    with _session(request) as session:
-        b = crud.get_breaker(session, breaker_id=breaker_id) or _not_found(f"breaker {breaker_id}")
+    with db_session(request) as session:
+        b = crud.get_breaker(session, breaker_id=breaker_id) or not_found(f"breaker {breaker_id}")
         body = request.app.state.web_trends.body(session, b, request.app.state.settings)
     return security_headers(Response(body, media_type="application/json"))
 
@@ -222,24 +190,18 @@ def reset_baseline(request: Request, breaker_id: Id, user: AdminPost,
     settings = request.app.state.settings
     if confirm != "yes":
         raise HTTPException(400, "tick the confirmation box to reset the baseline")
-    with _session(request) as session:
-        crud.get_breaker(session, breaker_id=breaker_id) or _not_found(f"breaker {breaker_id}")
+    with db_session(request) as session:
+        crud.get_breaker(session, breaker_id=breaker_id) or not_found(f"breaker {breaker_id}")
         reset(session, breaker_id=breaker_id, by=f"{user.name} (web: {reason})", settings=settings.drift_settings)
         session.commit()
-    return _back(request, f"/breakers/{breaker_id}")
-
-
-def _back(request: Request, default: str):
-    resp = RedirectResponse(_safe_next(request.query_params.get("back")) if request.query_params.get("back")
-                            else default, status_code=303)
-    return security_headers(resp)
+    return back(request, f"/breakers/{breaker_id}")
 
 
 # -- operation ---------------------------------------------------------------------------------
 @router.get("/operations/{operation_id}")
 def operation_page(request: Request, operation_id: Id, user: Reader):
-    with _session(request) as session:
-        op = crud.get_operation(session, operation_id=operation_id) or _not_found(f"operation {operation_id}")
+    with db_session(request) as session:
+        op = crud.get_operation(session, operation_id=operation_id) or not_found(f"operation {operation_id}")
         b = crud.get_breaker(session, breaker_id=op.breaker_id)
         diag = crud_web.get_diagnosis(session, operation_id=op.id)
         from service.storage.retention import get_preview
@@ -281,15 +243,15 @@ def analyser_table(analyser: dict | None) -> dict | None:
 def operation_curves_json(request: Request, operation_id: Id, user: Reader):
     from service.acquisition.capture_file import read_stored_capture
 
-    with _session(request) as session:
-        op = crud.get_operation(session, operation_id=operation_id) or _not_found(f"operation {operation_id}")
+    with db_session(request) as session:
+        op = crud.get_operation(session, operation_id=operation_id) or not_found(f"operation {operation_id}")
         breaker = crud.breaker_model(crud.get_breaker(session, breaker_id=op.breaker_id))
         fit, path = op.fit, op.capture_path
     # the file is read and the curves computed with the connection back in the pool
     try:
         cap = read_stored_capture(path, breaker)
     except CaptureError as exc:
-        with _session(request) as session:
+        with db_session(request) as session:
             cap = _pruned_preview(session, op.id)
         if cap is None:
             from service.errors import redact_paths
@@ -325,8 +287,8 @@ def _pruned_preview(session, operation_id: int):
 @router.post("/operations/{operation_id}/diagnosis")
 def request_diagnosis(request: Request, operation_id: Id, user: ReaderPost):
     """Queue the gap diagnosis (as the API's GET does for any reader); the page polls for it."""
-    with _session(request) as session:
-        crud.get_operation(session, operation_id=operation_id) or _not_found(f"operation {operation_id}")
+    with db_session(request) as session:
+        crud.get_operation(session, operation_id=operation_id) or not_found(f"operation {operation_id}")
         row = crud_web.get_diagnosis(session, operation_id=operation_id)
         if row is None:
             try:
@@ -337,15 +299,15 @@ def request_diagnosis(request: Request, operation_id: Id, user: ReaderPost):
             row = crud_web.get_diagnosis(session, operation_id=operation_id)
         if row.status in ("queued", "running"):
             request.app.state.diagnoses.ensure(operation_id)
-    return _back(request, f"/operations/{operation_id}#diagnosis")
+    return back(request, f"/operations/{operation_id}#diagnosis")
 
 
 @router.get("/operations/{operation_id}/capture.zip")
 def download_capture(request: Request, operation_id: Id, user: Reader):
     from service.storage.spool import capture_files
 
-    with _session(request) as session:
-        op = crud.get_operation(session, operation_id=operation_id) or _not_found(f"operation {operation_id}")
+    with db_session(request) as session:
+        op = crud.get_operation(session, operation_id=operation_id) or not_found(f"operation {operation_id}")
         files = capture_files(op.capture_path)
     missing = [p.name for p in files if not p.is_file()]
     if missing:
@@ -362,7 +324,7 @@ def download_capture(request: Request, operation_id: Id, user: Reader):
 # -- alarms ------------------------------------------------------------------------------------
 @router.get("/alarms")
 def alarms_page(request: Request, user: Reader, state: Annotated[str, Query(pattern="^(active|all)$")] = "active"):
-    with _session(request) as session:
+    with db_session(request) as session:
         rows = crud_web.alarms_with_breakers(session, state=state)
     return page(request, "alarms.html", {"rows": rows, "state": state, "nav": "alarms"})
 
@@ -373,21 +335,21 @@ def acknowledge(request: Request, alarm_id: Id, user: OperatorPost,
     from service.jobs.fit import acknowledge_drift
 
     settings = request.app.state.settings
-    with _session(request) as session:
-        alarm = crud.get_alarm(session, alarm_id=alarm_id) or _not_found(f"alarm {alarm_id}")
+    with db_session(request) as session:
+        alarm = crud.get_alarm(session, alarm_id=alarm_id) or not_found(f"alarm {alarm_id}")
         if alarm.state == "cleared":
             raise HTTPException(409, f"alarm {alarm_id} is already cleared")
         if alarm.state == "raised":
             crud.acknowledge_alarm(session, alarm=alarm, by=user.name, comment=comment.strip() or None)
             acknowledge_drift(session, alarm=alarm, by=user.name, settings=settings.drift_settings)
             session.commit()
-    return _back(request, "/alarms")
+    return back(request, "/alarms")
 
 
 # -- upload ------------------------------------------------------------------------------------
 @router.get("/upload")
 def upload_form(request: Request, user: Annotated[WebUser, Depends(auth.require_page("operator"))]):
-    with _session(request) as session:
+    with db_session(request) as session:
         breakers = crud.list_breakers(session)
     return page(request, "upload.html", {"breakers": breakers, "nav": "upload"})
 
@@ -399,18 +361,17 @@ async def upload(request: Request, user: OperatorPost,
                  operation: Annotated[str, Form(pattern="^(auto|open|close)$")] = "auto",
                  temperature_c: Annotated[str, Form(max_length=20)] = ""):
     from service.jobs.upload import UploadRefused, ingest_upload, parse_upload
-    from service.web.routes_alarms import form_temperature
 
     settings = request.app.state.settings
 
     def form_error(message: str, status: int):
-        with _session(request) as session:
+        with db_session(request) as session:
             breakers = crud.list_breakers(session)
         return page(request, "upload.html", {"breakers": breakers, "nav": "upload", "error": message,
                                              "chosen": breaker_id}, status_code=status)
 
     def breaker_row():
-        with _session(request) as session:
+        with db_session(request) as session:
             return crud.get_breaker(session, breaker_id=breaker_id)
 
     try:
@@ -435,6 +396,6 @@ async def upload(request: Request, user: OperatorPost,
 @router.get("/ui/marker")
 def marker(request: Request, user: Reader):
     """Changes whenever something a page shows changes; pages poll it and refresh their parts."""
-    with _session(request) as session:
+    with db_session(request) as session:
         m = crud_web.change_marker(session)
     return security_headers(JSONResponse({"marker": m}))

@@ -7,31 +7,17 @@ from __future__ import annotations
 import math
 from typing import Annotated
 
-from fastapi import APIRouter, Depends, Form, HTTPException, Path as PathParam, Request
+from fastapi import APIRouter, Form, HTTPException, Request
 
 from service.alarms.lifecycle import MAX_SHELVE, LifecycleError
 from service.jobs import alarm_actions as actions
 from service.storage import crud
 
 from .render import page
-from .routes import AdminPost, OperatorPost, Reader, _back, _session
+from .handlers import AdminPost, Id, OperatorPost, Reader, back, db_session
 
 router = APIRouter(include_in_schema=False)
-Id = Annotated[int, PathParam(ge=1, le=2_147_483_647)]
 W, H, PAD = 640.0, 150.0, 6.0
-
-
-def form_temperature(text: str) -> float | None:
-    """The optional temperature field of the upload form [C]; HTTPException 422 in words."""
-    from service.alarms import check_temperature
-
-    text = (text or "").strip().replace(",", ".")
-    if not text:
-        return None
-    try:
-        return check_temperature(text, "the temperature")
-    except ValueError as exc:
-        raise HTTPException(422, str(exc)) from None
 
 
 def _scale(values, lo=None, hi=None):
@@ -92,7 +78,7 @@ def _breaker(session, breaker_id: int):
 @router.get("/breakers/{breaker_id}/alarms")
 def breaker_alarms_page(request: Request, breaker_id: Id, user: Reader):
     settings = request.app.state.settings.drift_settings
-    with _session(request) as session:
+    with db_session(request) as session:
         b = _breaker(session, breaker_id)
         evidence = {p: actions.evidence(session, breaker_id=b.id, parameter=p, settings=settings, limit=400)
                     for p in settings.watched}
@@ -108,14 +94,14 @@ def _done(request: Request, breaker_id: int, call):
         call()
     except LifecycleError as exc:
         raise HTTPException(409, str(exc)) from None
-    return _back(request, f"/breakers/{breaker_id}/alarms")
+    return back(request, f"/breakers/{breaker_id}/alarms")
 
 
 @router.post("/alarms/{alarm_id}/shelve")
 def shelve(request: Request, alarm_id: Id, user: OperatorPost,
            hours: Annotated[float, Form(gt=0, le=MAX_SHELVE.total_seconds() / 3600)],
            reason: Annotated[str, Form(min_length=3, max_length=500)]):
-    with _session(request) as session:
+    with db_session(request) as session:
         a = _alarm(session, alarm_id)
         resp = _done(request, a.breaker_id, lambda: actions.shelve(session, alarm=a, by=user.name,
                                                                     minutes=hours * 60, reason=reason))
@@ -126,7 +112,7 @@ def shelve(request: Request, alarm_id: Id, user: OperatorPost,
 @router.post("/alarms/{alarm_id}/unshelve")
 def unshelve(request: Request, alarm_id: Id, user: OperatorPost,
              reason: Annotated[str, Form(max_length=500)] = ""):
-    with _session(request) as session:
+    with db_session(request) as session:
         a = _alarm(session, alarm_id)
         resp = _done(request, a.breaker_id, lambda: actions.unshelve(session, alarm=a, by=user.name, reason=reason))
         session.commit()
@@ -136,7 +122,7 @@ def unshelve(request: Request, alarm_id: Id, user: OperatorPost,
 @router.post("/breakers/{breaker_id}/out-of-service")
 def out_of_service(request: Request, breaker_id: Id, user: OperatorPost,
                    reason: Annotated[str, Form(min_length=3, max_length=500)]):
-    with _session(request) as session:
+    with db_session(request) as session:
         b = _breaker(session, breaker_id)
         resp = _done(request, b.id, lambda: actions.take_out_of_service(session, breaker=b, by=user.name,
                                                                          reason=reason))
@@ -148,7 +134,7 @@ def out_of_service(request: Request, breaker_id: Id, user: OperatorPost,
 def return_to_service(request: Request, breaker_id: Id, user: AdminPost,
                       reason: Annotated[str, Form(max_length=500)] = ""):
     settings = request.app.state.settings.drift_settings
-    with _session(request) as session:
+    with db_session(request) as session:
         b = _breaker(session, breaker_id)
         resp = _done(request, b.id, lambda: actions.return_to_service(session, breaker=b, by=user.name,
                                                                        reason=reason, settings=settings))

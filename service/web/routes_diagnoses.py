@@ -15,7 +15,7 @@ from service.storage import crud, crud_diagnoses
 
 from .diagnosis_view import view
 from .render import page, security_headers
-from .routes import Id, ReaderPost
+from .handlers import Id, ReaderPost
 
 router = APIRouter(include_in_schema=False)
 

@@ -13,7 +13,8 @@ import itertools
 import pytest
 
 from drivers.interface import SampleBlock
-from service.acquisition.trigger import INCOMPLETE, TriggerDetector, detect_capture
+from service.acquisition.recording import detect_capture
+from service.acquisition.trigger import INCOMPLETE, TriggerDetector
 from service.api.demo import DemoScript, history
 
 

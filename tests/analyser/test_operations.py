@@ -9,8 +9,9 @@ import sys
 import pytest
 
 from drivers.capture_file import read_capture
-from service.acquisition.trigger import TriggerSettings, detect_capture
 from service.acquisition.capture_file import breaker_reading
+from service.acquisition.recording import detect_capture
+from service.acquisition.trigger import TriggerSettings
 from service.breaker_file import load_breaker
 from service.estimation import fit_capture
 from service.estimation.window import FitError

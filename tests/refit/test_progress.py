@@ -55,7 +55,8 @@ def test_detect_reports_every_sample_of_a_long_recording(breaker):
     """``hvcb detect``'s bar is driven by the detector: the counts add up to the recording."""
     from drivers.capture import Capture
     from drivers.emulators.sources import synthetic_stream
-    from service.acquisition.trigger import TriggerSettings, detect_capture
+    from service.acquisition.recording import detect_capture
+    from service.acquisition.trigger import TriggerSettings
 
     import numpy as np
 

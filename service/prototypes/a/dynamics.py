@@ -16,7 +16,7 @@ import math
 import numpy as np
 from numba import njit
 
-from service.mechanics.closing_kernel import _cam
+from service.mechanics.closing_kernel import cam_at
 from .cam_friction import cam_load_factor
 from .contact_wipe import wipe_torque
 from .linkage_kinematics import inertia_ratio
@@ -94,7 +94,7 @@ def closing_rhs(x, p, e, c, cx, cy, cc):
     xC0, rC, d, CO, g_start = c[0], c[1], c[2], c[4], c[5]
     tt, te, tm = c[6], c[7], c[8]
     th1, om1, ph, vp = x[0], x[1], x[2], x[3]
-    h, h1, h2, _k = _cam(th1, 0, cx, cy, cc)
+    h, h1, h2, _k = cam_at(th1, 0, cx, cy, cc)
     ct = math.cos(th1)
     g = (xC0 - rC * (1.0 - ct)) * math.sin(th1) / (d + rC * ct)
     h0 = 2.0 * tm - te
@@ -202,7 +202,7 @@ def integrate_rk4(op, x0, p, e, c, cx, cy, cc, t, dt_max):
             theta[j] = x[0] + side * (x[2] - x[0])
             omega[j] = x[1] + side * (x[3] - x[1])
         else:
-            h, h1, _h2, _k = _cam(x[0], 0, cx, cy, cc)
+            h, h1, _h2, _k = cam_at(x[0], 0, cx, cy, cc)
             theta[j] = h + side * (x[2] - h)
             omega[j] = h1 * x[1] + side * (x[3] - h1 * x[1])
     return theta, omega, ev

@@ -91,7 +91,7 @@ def simulate_prototype_opening(params: Mapping[str, float], t, *, breaker: Break
     e = effect_vector(effects.as_array())
     x0 = np.zeros(4)
     if method == "fast":
-        theta, omega, ev = _fast(0, x0, p, e, c, None, t, dt_max)
+        theta, omega, ev = integrate(0, x0, p, e, c, None, t, dt_max)
         t_buf, t_peak = ev[0], ev[1]
     elif method == "exact":
         theta, omega, t_buf, t_peak, _ = _exact_opening(x0, p, e, c, t)
@@ -138,7 +138,7 @@ def simulate_prototype_closing(params: Mapping[str, float], t, *, breaker: Break
     h0 = float(breaker.cam.theta2[0])
     x0 = np.array([c[3], 0.0, h0, 0.0])
     if method == "fast":
-        theta, omega, ev = _fast(1, x0, p, e, c, breaker.cam, t, dt_max)
+        theta, omega, ev = integrate(1, x0, p, e, c, breaker.cam, t, dt_max)
         t_touch, t_peak, stalled = ev[0], ev[1], bool(ev[2])
     elif method == "exact":
         theta, omega, t_touch, t_peak, stalled, _ = _exact_closing(x0, p, e, c, breaker.cam, t)
@@ -177,7 +177,9 @@ def prototype_state(operation: str, params: Mapping[str, float], t, *, breaker: 
     return _exact_closing(x0, p, e, c, breaker.cam, t)[-1]
 
 
-def _fast(op, x0, p, e, c, cam, t, dt_max):
+def integrate(op, x0, p, e, c, cam, t, dt_max):
+    """The compiled RK4 path: angle [rad], speed [rad/s] at times ``t`` [s] and the event times,
+    for an opening (``op`` 0) or a closing (1 with its ``cam``), steps at most ``dt_max`` [s]."""
     tc = np.maximum(t, 0.0)
     if tc.size and np.any(np.diff(tc) < 0):
         raise ValueError("the prototype needs non-decreasing times")
@@ -324,11 +326,11 @@ def simulate_family(operation: str, params: Mapping[str, float], t, *, breaker: 
             shapes = {effect: shape}
     e = effect_vector(strengths, shapes)
     if operation == "open":
-        theta, omega, ev = _fast(0, np.zeros(4), p, e, opening_constants(breaker), None, t, dt_max)
+        theta, omega, ev = integrate(0, np.zeros(4), p, e, opening_constants(breaker), None, t, dt_max)
     else:
         c = closing_constants(breaker)
         x0 = np.array([c[3], 0.0, float(breaker.cam.theta2[0]), 0.0])
-        theta, omega, ev = _fast(1, x0, p, e, c, breaker.cam, t, dt_max)
+        theta, omega, ev = integrate(1, x0, p, e, c, breaker.cam, t, dt_max)
     if effect == "sensor_nonlinearity" and strength != 0.0:
         sh = e[len(EFFECT_NAMES) + 3 * EFFECT_NAMES.index(effect):][:2]
         if operation == "open":
