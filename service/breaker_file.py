@@ -16,6 +16,7 @@ from typing import Annotated
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
+from .breaker_limits import Limits
 from .breaker_travel import TravelMapError, travel_options
 from .mechanics.breaker import TABLE2_RANGES, Breaker
 from .mechanics.cam_profile import CamProfile, CamProfileError
@@ -138,6 +139,7 @@ class BreakerFileModel(BaseModel):
     channels: Channels = Field(default_factory=Channels)
     acquisition: Acquisition = Field(default_factory=Acquisition)
     ranges: dict[str, tuple[float, float]] = Field(default_factory=dict)
+    limits: Limits = Field(default_factory=Limits)  # maintenance limits (service/breaker_limits.py)
 
     @model_validator(mode="after")
     def _cam_or_unknown(self):

@@ -22,7 +22,8 @@ LAYERS: list[tuple[str, ...]] = [
     ("service.errors", "service.progress", "service.plots", "service.durable", "service.decimation",
      "service.arguments", "service.processes"),
     ("service.mechanics",),                                      # the paper's reduced physics
-    ("drivers", "service.breaker_file", "service.breaker_travel", "service.acquisition"),  # captures, DAQs, breaker files
+    ("drivers", "service.breaker_file", "service.breaker_travel", "service.breaker_limits",
+     "service.acquisition"),  # captures, DAQs, breaker files
     ("service.estimation", "service.storage", "service.alarms", "service.prototypes"),
     ("service.diagnosis", "service.studies"),
     ("service.jobs", "service.workers", "service.refit", "service.agent", "service.iec61850",

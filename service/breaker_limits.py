@@ -1,0 +1,89 @@
+"""The ``[limits]`` table of a breaker file: maintenance limits of fitted parameters.
+
+A limit says at which value of a fitted mechanism parameter the breaker must be serviced. It is
+either absolute, in the parameter's unit (``DO = { min = 30.0 }``), or relative to the breaker's
+own temperature-compensated baseline (``DO = { min_change = -0.25 }``: 25 % below it). The
+prognosis (service.prognosis) forecasts when the compensated value crosses it.
+"""
+
+from __future__ import annotations
+
+import math
+from pydantic import BaseModel, ConfigDict, Field, RootModel, field_validator, model_validator
+
+from .mechanics.breaker import TABLE2_RANGES
+
+# The fitted parameters a limit may name: the search ranges' parameters plus the puffer damping
+# CO (fitted for an [unknown_design] breaker).
+LIMITABLE = tuple(TABLE2_RANGES) + ("CO",)
+# A relative change beyond +-100 % is not a maintenance limit but a different breaker.
+MAX_RELATIVE_CHANGE = 1.0
+
+
+class ParameterLimit(BaseModel):
+    """One parameter's limit: at most one lower and one upper bound.
+
+    min, max : absolute bound [the parameter's unit, e.g. DO s^-1, BO s^-2]
+    min_change, max_change : bound relative to the compensated baseline [-], e.g. -0.25
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    min: float | None = Field(None, gt=0.0, allow_inf_nan=False)
+    max: float | None = Field(None, gt=0.0, allow_inf_nan=False)
+    min_change: float | None = Field(None, gt=-MAX_RELATIVE_CHANGE, lt=0.0, allow_inf_nan=False)
+    max_change: float | None = Field(None, gt=0.0, le=MAX_RELATIVE_CHANGE, allow_inf_nan=False)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _table(cls, data):
+        if not isinstance(data, dict):
+            raise ValueError(f"must be a table such as {{ min = 30.0 }} or {{ min_change = -0.25 }}, got {data!r}")
+        return data
+
+    @model_validator(mode="after")
+    def _one_per_side(self):
+        if self.min is not None and self.min_change is not None:
+            raise ValueError("give min or min_change, not both")
+        if self.max is not None and self.max_change is not None:
+            raise ValueError("give max or max_change, not both")
+        if all(v is None for v in (self.min, self.max, self.min_change, self.max_change)):
+            raise ValueError("needs a bound: min, max, min_change or max_change")
+        if self.min is not None and self.max is not None and not self.min < self.max:
+            raise ValueError(f"min {self.min:g} must be below max {self.max:g}")
+        return self
+
+    def bounds(self, baseline: float) -> list[tuple[str, float]]:
+        """The bounds as ("falling" | "rising", value [unit]) for a compensated ``baseline``."""
+        if not math.isfinite(baseline) or baseline <= 0:
+            raise ValueError(f"baseline must be a positive finite value, got {baseline!r}")
+        out = []
+        if self.min is not None or self.min_change is not None:
+            out.append(("falling", self.min if self.min is not None else baseline * (1.0 + self.min_change)))
+        if self.max is not None or self.max_change is not None:
+            out.append(("rising", self.max if self.max is not None else baseline * (1.0 + self.max_change)))
+        return out
+
+    def describe(self) -> str:
+        """The limit as written, e.g. ``min_change = -0.25``."""
+        return ", ".join(f"{k} = {v:g}" for k, v in self.model_dump(exclude_none=True).items())
+
+
+class Limits(RootModel[dict[str, ParameterLimit]]):
+    """The ``[limits]`` table: parameter name -> its limit."""
+
+    root: dict[str, ParameterLimit] = Field(default_factory=dict)
+
+    @field_validator("root")
+    @classmethod
+    def _known(cls, v):
+        for name in v:
+            if name not in LIMITABLE:
+                raise ValueError(f"unknown parameter {name!r} (known: {', '.join(LIMITABLE)})")
+        return v
+
+    def items(self):
+        return self.root.items()
+
+    def __bool__(self) -> bool:
+        return bool(self.root)
+
