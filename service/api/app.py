@@ -22,8 +22,9 @@ from service.storage import crud
 from service.storage.db import make_engine, session_factory
 from service.storage.schema import NotMigrated, check_schema  # noqa: F401 (NotMigrated: callers catch it)
 
-from .deps import KeyCache, api_key_header, authorise_key, require
 from .guard import RequestGuard
+from .methods import AllowedMethods
+from .keys import KeyCache, api_key_header, authorise_key, require
 from .throttle import AuthThrottle
 from .metrics import build_registry, render
 
@@ -165,6 +166,10 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
 
     app.include_router(diagnoses_router)
 
+    from .routes_keys import router as keys_router
+
+    app.include_router(keys_router)
+
     from service.web import mount_web  # the engineers' web page at /
 
     mount_web(app)
@@ -172,6 +177,10 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
     from .docs import mount_docs
 
     mount_docs(app)
+
+    from .contract import install as install_contract
+
+    install_contract(app)  # after the web: its pages keep their own error handlers
 
     @app.exception_handler(OperationalError)
     @app.exception_handler(DBAPIError)
@@ -187,8 +196,9 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
                             headers={"Retry-After": "5"})
 
     app.add_middleware(RequestGuard, settings=settings, fastapi_app=app)
+    app.add_middleware(AllowedMethods, fastapi_app=app)  # outside the guard: OPTIONS never queues
 
-    @app.get("/healthz", tags=["service"])
+    @app.get("/healthz", tags=["service"], openapi_extra={"security": [{}]})  # public; a key adds details
     async def healthz(request: Request, key: Annotated[str | None, Security(api_key_header)] = None):
         """Liveness. Without a key: only ``{"status": "ok"}`` or ``"degraded"`` (the database does
         not answer or a DAQ is down). With any reader key: the details below.

@@ -21,8 +21,6 @@ import time
 
 from starlette.exceptions import HTTPException
 
-from service.web.auth import client_address  # noqa: F401 (re-exported for the API's key checks)
-
 log = logging.getLogger("hvcb.guard")
 
 API_UPLOAD = re.compile(r"^/api/v1/breakers/[^/]+/captures/?$")
@@ -180,7 +178,7 @@ class RequestGuard:
             if not user.can("operator"):
                 return (403, f"uploading needs the operator role; you are signed in as {user.role}", None)
             return None
-        from .deps import authorise_key
+        from .keys import authorise_key
 
         try:
             await authorise_key(request, request.headers.get("x-api-key"), "operator", also=("agent",))

@@ -30,7 +30,6 @@ MAX_ID = 2_147_483_647
 BreakerId = Annotated[int, PathParam(ge=1, le=MAX_ID, description="breaker id")]
 OperationId = Annotated[int, PathParam(ge=1, le=MAX_ID, description="operation id")]
 AlarmId = Annotated[int, PathParam(ge=1, le=MAX_ID, description="alarm id")]
-KeyId = Annotated[int, PathParam(ge=1, le=MAX_ID, description="API key id")]
 
 NOT_FOUND = {404: {"model": s.Message}}
 AUTH = {401: {"model": s.Message}, 403: {"model": s.Message}}
@@ -278,10 +277,11 @@ def _upload_context(session, breaker_id: int, idempotency_key: str | None):
              tags=["operations"])
 async def upload_capture(breaker_id: BreakerId, request: Request, response: Response,
                          settings: SettingsDep, monitor: MonitorDep, who: UploaderDep,
-                         files: Annotated[list[UploadFile], File(description="a .cfg and its .dat, one .cff, or one .zip")],
-                         operation: Annotated[Literal["open", "close"] | None,
+                         files: Annotated[list[UploadFile], File(min_length=1, description="a .cfg and its .dat, one .cff, or one .zip")],
+                         # no `| None`: a form field cannot be null, only left out
+                         operation: Annotated[Literal["open", "close"],
                                               Form(description="inferred from the travel when omitted")] = None,
-                         temperature_c: Annotated[float | None, Form(
+                         temperature_c: Annotated[float, Form(
                              ge=-60, le=100, allow_inf_nan=False,
                              description="ambient or mechanism temperature of the operation [C] "
                                          "(docs/alarms.md); else the capture's temperature channel, "
@@ -408,29 +408,3 @@ from .refits import router as _refit_router  # noqa: E402
 
 router.include_router(_refit_router)
 
-
-# -- keys --------------------------------------------------------------------------------------
-@router.get("/keys", response_model=list[s.ApiKeyPublic], responses=AUTH, tags=["keys"])
-def list_keys(session: SessionDep, _: AdminDep):
-    return crud.list_api_keys(session)
-
-
-@router.post("/keys", response_model=s.ApiKeyCreated, status_code=201, responses=AUTH, tags=["keys"])
-def create_key(body: s.ApiKeyCreate, session: SessionDep, _: AdminDep):
-    row, key = crud.create_api_key(session, name=body.name, role=body.role)
-    session.commit()
-    return s.ApiKeyCreated(**s.ApiKeyPublic.model_validate(row).model_dump(), key=key)
-
-
-@router.delete("/keys/{key_id}", response_model=s.ApiKeyPublic, responses={**AUTH, **NOT_FOUND}, tags=["keys"])
-def revoke_key(key_id: KeyId, request: Request, session: SessionDep, _: AdminDep):
-    from service.storage.models import ApiKeyRow
-
-    row = session.get(ApiKeyRow, key_id)
-    if row is None:
-        raise HTTPException(404, f"no key {key_id}")
-    if row.revoked_at is None:
-        row.revoked_at = utcnow()
-        session.commit()
-    request.app.state.key_cache.clear()
-    return row

@@ -46,8 +46,9 @@ class ORM(BaseModel):
 class BreakerCreate(BaseModel):
     """A breaker file (TOML text) and its cam table (CSV text), as in config/breakers/."""
 
-    breaker_file: str = Field(max_length=200_000)
-    cam_table: str = Field(max_length=5_000_000)
+    breaker_file: str = Field(min_length=1, max_length=200_000)
+    cam_table: str = Field(min_length=1, max_length=5_000_000, description="camshaft angle -> output-shaft angle, "
+                           "two columns; every design needs one")
     tag: str | None = Field(None, max_length=60, pattern=r"^[A-Za-z0-9_\-]+$",
                             description="SCADA designation used in point names, e.g. Q1")
 
@@ -249,3 +250,17 @@ class DiagnosisPublic(BaseModel):
 
 class Message(BaseModel):
     detail: str
+
+
+class FieldError(BaseModel):
+    loc: list[str | int] = Field(description="where: the field's path, e.g. [\"cam_table\"] or [\"name\"]")
+    msg: str = Field(description="what is wrong, in words")
+    type: str = Field(description="the kind of error, e.g. missing, string_too_long")
+
+
+class ErrorBody(BaseModel):
+    """Every error's body (4xx and 5xx): ``detail`` in words; ``errors`` per field on a 422 from
+    validation."""
+
+    detail: str = Field(description="what is wrong and, where it helps, what to do instead")
+    errors: list[FieldError] | None = Field(None, description="each invalid field (422 from validation only)")

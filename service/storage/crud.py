@@ -345,6 +345,25 @@ def count_api_keys(session: Session) -> int:
     return int(session.scalar(select(func.count()).select_from(ApiKeyRow)) or 0)
 
 
+class LastAdminKey(Exception):
+    """Revoking this key would leave no active admin key: nobody could manage keys any more."""
+
+
+def revoke_api_key(session: Session, *, row: ApiKeyRow) -> ApiKeyRow:
+    """Revoke ``row`` (already revoked: unchanged). Raises LastAdminKey instead of revoking the
+    last active admin key. The active admin rows are locked first (``FOR UPDATE`` on
+    PostgreSQL), so two admins revoking each other's key at once cannot both succeed."""
+    if row.revoked_at is not None:
+        return row
+    if row.role == "admin":
+        admins = session.scalars(select(ApiKeyRow.id).where(ApiKeyRow.role == "admin", ApiKeyRow.revoked_at.is_(None))
+                                 .with_for_update()).all()
+        if set(admins) <= {row.id}:
+            raise LastAdminKey(row.id)
+    row.revoked_at = utcnow()
+    return row
+
+
 # -- DAQ status --------------------------------------------------------------------------------
 def report_daq(session: Session, *, breaker_id: int, connected: bool, frames: int = 0, frames_dropped: int = 0,
                crc_errors: int = 0, captures: int = 0, detail: str = "", seen_at: datetime | None = None) -> None:
