@@ -84,7 +84,7 @@ def reduced_fit(capture, breaker, operation: str, *, alpha0: float | None = None
     return ReducedFit(np.asarray(r.fitted_travel(capture, breaker), float), (i0, i1), params)
 
 
-def _same_length(travel: np.ndarray, n: int) -> np.ndarray:
+def same_length(travel: np.ndarray, n: int) -> np.ndarray:
     """The healthy twin on the capture's samples: its record ends where its own stroke (and
     post-trigger time) does, so it is cut, or held at its final rest angle, to ``n`` samples."""
     if travel.size >= n:
@@ -161,7 +161,7 @@ def oracle_of_files(directory, stems, breaker, operation: str, *, seed: int = 1)
         caps.append(cap)
         cleans.append(clean)
         h = d / f"{s}.healthy.npy"
-        healthies.append(_same_length(np.load(h), clean.size) if h.exists() else None)
+        healthies.append(same_length(np.load(h), clean.size) if h.exists() else None)
     if any(h is None for h in healthies):
         healthies = None
     return group_oracle(caps, cleans, healthies, breaker, operation, seed=seed)
