@@ -19,7 +19,7 @@ STUDIES = {
     "optimizers": "service.studies.optimizers:run",
     "conditions": "service.studies.conditions:run",
     "classify": "service.studies.classify:run",
-    "gap": "service.diagnosis.study:run_gap_study",
+    "gap": "service.studies.gap:run_gap_study",
 }
 
 

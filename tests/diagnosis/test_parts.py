@@ -1,5 +1,5 @@
 """Pure parts of the pipeline: the evidence's priors, the decision's size rule, the CLI's
-capture expansion, the group generators' interface, the study's scoring."""
+capture expansion, the group generators' interface."""
 
 import json
 from types import SimpleNamespace
@@ -12,7 +12,6 @@ from service.diagnosis.decision import MILD, gap_sigma
 from service.diagnosis.errors import DiagnosisError
 from service.diagnosis.evidence import evidence
 from service.diagnosis.hypotheses import HypothesisFit, spline_basis
-from service.diagnosis.study import calibration, score
 
 
 def _fits(chi, spread=None):
@@ -101,31 +100,6 @@ def test_group_generators_interface(proto, tmp_path):
         conds = [t["conditions"] for t in gr["truths"]]
         assert conds[0] != conds[1]                       # conditions vary per capture
     assert json.loads((tmp_path / "manifest.json").read_text())["groups"][0]["effects"] == {}
-
-
-def _row(truth, status, effects, probs, outside=False, gap=1.0, rivals=(), absorbed=()):
-    top = max(probs, key=probs.get)
-    return {"truth": truth, "status": status, "effects": effects, "probabilities": probs, "outside": outside,
-            "gap": {"gap_sigma": gap}, "rivals": list(rivals), "absorbed": list(absorbed), "cpu_s": 1.0,
-            "answer": top, "answer_probability": probs[top]}
-
-
-def test_score_and_calibration():
-    rows = [_row(["x"], "named", ["x"], {"x": 0.95, "none": 0.05}),
-            _row(["x"], "named", ["y"], {"y": 0.92, "x": 0.08}),
-            _row([], "none", [], {"none": 0.97, "x": 0.03}),
-            _row(["x", "y"], "ambiguous", [], {"x": 0.5, "x+y": 0.4, "none": 0.1},
-                 rivals=[{"effect": "x", "probability": 0.5}, {"effect": "x+y", "probability": 0.4}]),
-            _row([], "unexplained", [], {"outside_catalogue": 0.99, "none": 0.01}, outside=True)]
-    s = score(rows)
-    assert s["top1_detectable"]["k"] == 1 and s["top1_detectable"]["n"] == 2
-    assert s["wrong_names"]["k"] == 1 and s["wrong_names"]["n"] == 5
-    assert s["none_on_healthy"]["fraction"] == 1.0
-    assert s["two_effect_both"]["k"] == 1
-    assert s["outside_unexplained"]["k"] == 1
-    c = calibration(rows)
-    assert c["stated_ge_0_9"]["n"] == 4
-    assert c["stated_ge_0_9"]["fraction_right"] == pytest.approx(3 / 4)
 
 
 def test_measurement_separation():

@@ -148,6 +148,7 @@ def write_groups(out_dir, *, seed, per_effect=4, controls=6, two_effect=4, outsi
 def write_group_files(out_dir, prototype, units, *, seed, captures_per_group, simulate, draw, outside):
     """``units``: [(operation, {effect: strength factor}, unit)]. One group per unit, its captures
     under freshly drawn conditions; stems do not reveal the effect. Returns the manifest."""
+    import copy
     import json
     import os
     from pathlib import Path
@@ -166,6 +167,9 @@ def write_group_files(out_dir, prototype, units, *, seed, captures_per_group, si
                 # a breaker that does not complete its stroke under these conditions (a closing
                 # that stalls) leaves no record: the recorder sees no operation
                 cond = draw(rng)
+                # the same draws without noise: the noiseless travel the oracle of the study compares
+                # against (service.studies.gap.oracle); a copy, so the written captures do not change
+                twin = copy.deepcopy(rng)
                 try:
                     cap, truth = simulate(unit, op, conditions=cond, rng=rng)
                     break
@@ -175,6 +179,7 @@ def write_group_files(out_dir, prototype, units, *, seed, captures_per_group, si
                 raise RuntimeError(f"group {gi}: {op} with {factors} never completes its stroke")
             stem = f"{prototype}g{gi:03d}c{j}"
             write_comtrade(cap, out, stem, format="BINARY")
+            write_clean(out, stem, simulate, unit, op, cond, twin)
             stems.append(stem)
             truths.append(truth)
         groups.append({"group": f"{prototype}g{gi:03d}", "operation": op,
@@ -187,3 +192,17 @@ def write_group_files(out_dir, prototype, units, *, seed, captures_per_group, si
     tmp.write_text(json.dumps(manifest, indent=1, default=float) + "\n")
     os.replace(tmp, out / "manifest.json")
     return manifest
+
+
+def write_clean(out, stem, simulate, unit, operation, conditions, rng) -> None:
+    """``<stem>.clean.npy``: the capture's travel without noise [rad] (same unit, conditions and
+    draws); ``<stem>.healthy.npy``: the same without the unit's effects (the truth that an absorbed
+    effect's parameter bias is checked against). ``rng`` is a copy taken before the noisy capture."""
+    import copy
+    import dataclasses
+
+    healthy = (dataclasses.replace(unit, effects={}) if dataclasses.is_dataclass(unit)
+               else {**unit, "effects": {}})
+    for suffix, u in (("clean", unit), ("healthy", healthy)):
+        cap, _ = simulate(u, operation, conditions=conditions, rng=copy.deepcopy(rng), noise_rad=0.0)
+        np.save(Path(out) / f"{stem}.{suffix}.npy", np.asarray(cap.travel, dtype=float))

@@ -6,6 +6,7 @@ the manifest only.
 
 from __future__ import annotations
 
+import copy
 import json
 import os
 import tempfile
@@ -14,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from service.acquisition.comtrade_writer import write_comtrade
+from service.prototypes.a.groups import write_clean
 
 from .capture import draw_conditions, simulate_capture
 from .effects import EFFECTS, OPERATIONS, OUTSIDE, check_effects, draw_shapes
@@ -69,8 +71,11 @@ def write_groups(out_dir, *, seed: int, per_effect: int = 4, controls: int = 6, 
         stems, truths = [], []
         for ci in range(captures_per_group):
             stem = f"pc_g{gi:03d}_c{ci}"
-            cap, truth = simulate_capture(unit, op, conditions=draw_conditions(rng), rng=rng)
+            cond = draw_conditions(rng)
+            twin = copy.deepcopy(rng)       # the same draws, for the noiseless travel (write_clean)
+            cap, truth = simulate_capture(unit, op, conditions=cond, rng=rng)
             write_comtrade(cap, out, stem, format="BINARY", station="PROTO-C", device=f"unit-{gi:03d}")
+            write_clean(out, stem, simulate_capture, unit, op, cond, twin)
             stems.append(stem)
             truths.append(truth)
         manifest.append({"group": f"g{gi:03d}", "operation": op, "effects": effects,
