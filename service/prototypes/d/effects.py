@@ -1,0 +1,69 @@
+"""Prototype D's effects: their names, the operations they act on, and each one's strength scale.
+
+Every effect has a dimensionless strength s (0 = off); s = 1 is the typical field magnitude
+given in ``SCALES`` with its source or derivation (docs/prototype-d.md has the laws).
+"""
+
+from __future__ import annotations
+
+EFFECTS = (
+    "linkage_kinematics", "orifice_buffer", "puffer_gas", "rod_elasticity", "stribeck_friction",
+    "viscous_friction", "spring_nonlinearity", "sensor_nonlinearity", "cam_friction",
+    "contact_wipe",
+)
+OUTSIDE = ("sensor_lag", "latch_ramp", "pin_backlash")
+BOTH = ("open", "close")
+OPERATIONS = {
+    "linkage_kinematics": BOTH, "orifice_buffer": ("open",), "puffer_gas": ("open",),
+    "rod_elasticity": BOTH, "stribeck_friction": BOTH, "viscous_friction": BOTH,
+    "spring_nonlinearity": BOTH, "sensor_nonlinearity": BOTH, "cam_friction": ("close",),
+    "contact_wipe": ("close",), "sensor_lag": BOTH, "latch_ramp": BOTH, "pin_backlash": BOTH,
+}
+
+# s = 1 of each effect. Sources and derivations: docs/prototype-d.md, section "The effects".
+SCALES = {
+    # crank swinging ±0.5 rad about its perpendicular: G varies as cos, −12 % at the stroke ends
+    "linkage_kinematics": {"s_link": 1.0},
+    # damping force exponent 1 + s: s = 1 is the turbulent orifice law Δp ∝ Q²
+    "orifice_buffer": {"exponent_excess": 1.0},
+    # auxiliary compression volume of a 50 mm bore, compression ratio 3, SF6 at 0.6 MPa abs
+    "puffer_gas": {"A_p_m2": 2.0e-3, "A_n_m2": 4.0e-5, "p0_Pa": 0.6e6, "gamma": 1.1,
+                   "rho0_kg_m3": 36.0, "L0_m": 0.30, "Cd": 0.6},
+    # pull-rod mode of the contact mass at 200 Hz; compliance ∝ s, so f = 200 Hz / √s
+    "rod_elasticity": {"f_Hz": 200.0, "zeta": 0.05},
+    # static/kinetic friction 1.6 (greased steel, boundary lubrication); Stribeck speed 2 rad/s
+    "stribeck_friction": {"excess_fraction": 0.6, "w_s_rad_s": 2.0},
+    # bearings and seals: 10 % of the opening's Coulomb torque at 10 rad/s
+    "viscous_friction": {"c_Nms": 6.0},
+    # coil contact: local rate at the compressed end ±30 % of nominal (e = ±0.15)
+    "spring_nonlinearity": {"e": 0.15},
+    # independent linearity of a resistive transducer ±0.5 % of the 1 rad stroke: 5 mrad bow
+    "sensor_nonlinearity": {"bow_rad": 5.0e-3},
+    # effective friction coefficient of a roller follower (rolling + needle bearing), arms equal
+    "cam_friction": {"mu_eff": 0.05},
+    # 24 fingers × ~100 N, silver on silver greased μ 0.2, 15° chamfer over 5 mm, touch at 85 %
+    "contact_wipe": {"F_n_N": 2500.0, "mu": 0.2, "tan_chamfer": 0.27, "l_chamfer_m": 5e-3,
+                     "theta2_touch": 0.85},
+    # transducer first-order lag
+    "sensor_lag": {"tau_s": 0.5e-3},
+    # latch release ramp
+    "latch_ramp": {"tau_s": 1.5e-3},
+    # worn pins in series: 1 mm total free play at the contact; pin contact stiffness as a
+    # 1.5 kHz mode of the contact mass
+    "pin_backlash": {"gap_m": 1.0e-3, "f_contact_Hz": 1500.0, "zeta": 0.1},
+}
+
+
+def check_effects(effects: dict, operation: str) -> None:
+    """Raise ValueError unless every effect is known, acts on ``operation`` and has s ≥ 0."""
+    if operation not in BOTH:
+        raise ValueError(f"operation must be 'open' or 'close', got {operation!r}")
+    for name, s in effects.items():
+        if name not in OPERATIONS:
+            raise ValueError(f"unknown effect {name!r}; prototype D knows "
+                             f"{', '.join(EFFECTS + OUTSIDE)}")
+        if operation not in OPERATIONS[name]:
+            raise ValueError(f"effect {name!r} acts on {' and '.join(OPERATIONS[name])}, "
+                             f"not on {operation}")
+        if not (isinstance(s, (int, float)) and s >= 0 and s == s and s != float("inf")):
+            raise ValueError(f"strength of {name!r} must be a finite number ≥ 0, got {s!r}")
