@@ -124,13 +124,12 @@ def latch(t, P, T0):
 
 @njit(cache=True)
 def puffer_flow(p, P):
-    """Nozzle leakage [m³/s] of the puffer at absolute pressure p [Pa]: orifice flow
-    Cd A_n √(2Δp/ρ), ρ = ρ0 (p/p0)^(1/γ) along the compression's isentrope."""
+    """Nozzle flow out of the puffer [m³/s] at absolute pressure p [Pa] (negative: gas flows
+    back in): orifice flow Cd A_n √(2|Δp|/ρ), ρ = ρ0 (p/p0)^(1/γ) along the isentrope."""
     dp = p - P[_P0]
-    if dp <= 0.0:
-        return 0.0
     rho = P[_RHO0] * (p / P[_P0]) ** (1.0 / P[_GAMMA])
-    return P[_CD] * P[_A_N] * math.sqrt(2.0 * dp / rho)
+    q = P[_CD] * P[_A_N] * math.sqrt(2.0 * abs(dp) / rho)
+    return q if dp >= 0.0 else -q
 
 
 @njit(cache=True)
@@ -301,11 +300,20 @@ def integrate_close(P: np.ndarray, table: np.ndarray, theta1_start: float, dt: f
 
 @njit(cache=True)
 def close_travel(states, P, table):
-    """(travel θ = stroke − h [rad], its rate [rad/s]) from the closing's states."""
+    """(travel θ = stroke − h [rad], its rate [rad/s]) from the closing's states. Once the
+    shaft reaches the closed position (the cam's dwell at its top) the trip latch holds it
+    there, whatever the camshaft does after."""
     n = states.shape[0]
     th, w = np.empty(n), np.empty(n)
+    top = table[table.shape[0] - 1, 1]
+    latched = False
     for k in range(n):
+        if latched:
+            th[k] = th[k - 1]
+            w[k] = 0.0
+            continue
         h, hp, _ = cam_lookup(states[k, 0] - P[_CAM_PHASE], table)
         th[k] = P[_STROKE] - h
         w[k] = -hp * states[k, 1]
+        latched = h >= top - 1e-9 * abs(top)
     return th, w
