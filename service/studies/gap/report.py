@@ -9,8 +9,7 @@ import os
 from pathlib import Path
 
 from .calibration import apply_map, fit_map, lopo, raw_probability, write_shipped
-from .runner import DEVELOPMENT
-from .scoring import TARGETS, meets, reliability, right, score
+from .scoring import DEVELOPMENT, TARGETS, meets, reliability, right, score
 
 LABELS = {"top1_detectable": "top-1 on detectable", "none_on_healthy": "healthy → none",
           "wrong_names": "wrong names", "two_effect_both": "two effects: both",

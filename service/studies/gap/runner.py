@@ -17,10 +17,11 @@ import os
 import time
 from pathlib import Path
 
+from .scoring import DEVELOPMENT
+
 DEFAULT_SEED = 2026
 SIZES = {"per_effect": 4, "controls": 6, "two_effect": 8, "outside": 2, "captures_per_group": 5}
 QUICK = {"per_effect": 1, "controls": 2, "two_effect": 1, "outside": 1, "captures_per_group": 3}
-DEVELOPMENT = ("a", "b", "c")
 # the argument of ``diagnose`` that selects the effect subspaces built without one prototype
 LOPO_ARGUMENT = "without_prototype"
 

@@ -28,6 +28,9 @@ import math
 
 import numpy as np
 
+# The development prototypes (the method may be built on them); any other is held out.
+DEVELOPMENT = ("a", "b", "c")
+
 Z95 = 1.959963984540054
 BINS = (0.0, 0.5, 0.7, 0.9, 0.99, 1.0)
 # the diagnosis states an absorbed effect's bias at its realistic strength; the groups' strengths
