@@ -34,8 +34,8 @@ SCALES = {
     "rod_elasticity": {"f_Hz": 200.0, "zeta": 0.05},
     # static/kinetic friction 1.6 (greased steel, boundary lubrication); Stribeck speed 2 rad/s
     "stribeck_friction": {"excess_fraction": 0.6, "w_s_rad_s": 2.0},
-    # bearings and seals: 10 % of the arc chamber's linear damping caec·raec² = 22.5 N m s
-    "viscous_friction": {"c_Nms": 2.25},
+    # greased pins, bearings and seals: at an opening's peak speed (~30 rad/s) 5 % of TOf
+    "viscous_friction": {"c_Nms": 1.0},
     # coil contact: local rate at the compressed end ±30 % of nominal (e = ±0.15)
     "spring_nonlinearity": {"e": 0.15},
     # independent linearity of a resistive transducer ±0.5 % of the 1 rad stroke: 5 mrad bow
