@@ -56,7 +56,7 @@ def effect_sizes() -> list[dict]:
     return rows
 
 
-def main() -> None:
+def main() -> dict:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seed", type=int, default=2026)
     ap.add_argument("--skip-full", action="store_true")
@@ -76,10 +76,10 @@ def main() -> None:
                               "captures": sum(len(g["stems"]) for g in manifest),
                               "cpu_s": round(cpu, 1), "wall_s": round(wall, 1)}
         print(f"full set: {result['full_set']}")
-    out = REPO / "bench" / "results" / "prototype_d_dataset.json"
-    out.write_text(json.dumps(result, indent=1) + "\n")
-    print(f"wrote {out}")
+    return result
 
 
 if __name__ == "__main__":
-    main()
+    RESULT = REPO / "bench" / "results" / "prototype_d_dataset.json"
+    RESULT.write_text(json.dumps(main(), indent=1) + "\n")
+    print(f"wrote {RESULT.relative_to(REPO)}")
