@@ -26,12 +26,12 @@ REPO = Path(__file__).resolve().parents[1]
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 sys.path.insert(0, str(REPO))
 
-import numpy as np  # noqa: E402
+import numpy as np
 
-from service.prototypes.d import EFFECTS, OPERATIONS, OUTSIDE, write_groups  # noqa: E402
-from service.prototypes.d.groups import SAMPLES  # noqa: E402
-from service.prototypes.d.simulate import SAMPLE_RATE_HZ, sensor_reading, true_travel  # noqa: E402
-from service.prototypes.d.unit import design, physical  # noqa: E402
+from service.prototypes.d import EFFECTS, OPERATIONS, OUTSIDE, write_groups
+from service.prototypes.d.groups import SAMPLES
+from service.prototypes.d.simulate import SAMPLE_RATE_HZ, sensor_reading, true_travel
+from service.prototypes.d.unit import design, physical
 
 RELEASE_S = 0.02
 

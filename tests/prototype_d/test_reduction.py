@@ -38,7 +38,7 @@ def opening_reduced(p, alpha0, t):
     def engage(_, y):
         return y[0] - alpha0
     engage.terminal, engage.direction = True, 1
-    kw = dict(method="DOP853", rtol=1e-12, atol=1e-14)
+    kw = {"method": "DOP853", "rtol": 1e-12, "atol": 1e-14}
     first = solve_ivp(free, (0, t[-1]), [0.0, 0.0], events=engage, dense_output=True, **kw)
     t_e = first.t_events[0][0]
     second = solve_ivp(buffered, (t_e, t[-1]), first.y_events[0][0], dense_output=True, **kw)

@@ -6,6 +6,8 @@ given in ``SCALES`` with its source or derivation (docs/prototype-d.md has the l
 
 from __future__ import annotations
 
+import math
+
 EFFECTS = (
     "linkage_kinematics", "orifice_buffer", "puffer_gas", "rod_elasticity", "stribeck_friction",
     "viscous_friction", "spring_nonlinearity", "sensor_nonlinearity", "cam_friction",
@@ -68,5 +70,5 @@ def check_effects(effects: dict, operation: str) -> None:
         if operation not in OPERATIONS[name]:
             raise ValueError(f"effect {name!r} acts on {' and '.join(OPERATIONS[name])}, "
                              f"not on {operation}")
-        if not (isinstance(s, (int, float)) and s >= 0 and s == s and s != float("inf")):
+        if not (isinstance(s, (int, float)) and math.isfinite(s) and s >= 0):
             raise ValueError(f"strength of {name!r} must be a finite number ≥ 0, got {s!r}")

@@ -53,12 +53,12 @@ def vibration_noise(rng: np.random.Generator, character: dict, rate: np.ndarray,
     speed = np.abs(rate) / max(float(np.abs(rate).max()), 1e-12)
     force = MOTION_FORCING * speed * rng.standard_normal(n)
     for name, t_ev in events_s.items():
-        k = int(round(t_ev * fs))
+        k = round(t_ev * fs)
         if 0 <= k < n:
             force[k] += SHOCKS[name] * rng.uniform(0.7, 1.3)
     disp = np.zeros(n)
     acc = np.zeros(n)
-    latch = int(round(events_s["latch"] * fs))
+    latch = round(events_s["latch"] * fs)
     for f, zeta, weight in zip(character["modes_hz"], character["damping"], character["weights"]):
         q = _mode(fs, f, zeta, force)
         disp += weight * q
