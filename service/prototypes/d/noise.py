@@ -18,7 +18,8 @@ from scipy.signal import lfilter
 
 MODES_HZ = (350.0, 900.0, 2300.0)  # frame, mechanism housing, pole column: each ±10 % per unit
 SHOCKS = {"latch": 1.0, "buffer": 0.6, "end": 0.3, "touch": 0.5, "closed": 1.0}
-MOTION_FORCING = 0.02   # white forcing per sample at peak speed, relative to the latch impulse
+MOTION_FORCING = 0.005  # white forcing per sample at peak speed, relative to the latch impulse:
+#                         some tens of g of running vibration against a 300-500 g latch shock
 VIBRATION_WHITE_G = 0.5  # accelerometer noise floor [g]
 
 
