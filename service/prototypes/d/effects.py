@@ -6,6 +6,8 @@ given in ``SCALES`` with its source or derivation (docs/prototype-d.md has the l
 
 from __future__ import annotations
 
+import math
+
 EFFECTS = (
     "linkage_kinematics", "orifice_buffer", "puffer_gas", "rod_elasticity", "stribeck_friction",
     "viscous_friction", "spring_nonlinearity", "sensor_nonlinearity", "cam_friction",
@@ -34,8 +36,8 @@ SCALES = {
     "rod_elasticity": {"f_Hz": 200.0, "zeta": 0.05},
     # static/kinetic friction 1.6 (greased steel, boundary lubrication); Stribeck speed 2 rad/s
     "stribeck_friction": {"excess_fraction": 0.6, "w_s_rad_s": 2.0},
-    # bearings and seals: 10 % of the arc chamber's linear damping caec·raec² = 22.5 N m s
-    "viscous_friction": {"c_Nms": 2.25},
+    # greased pins, bearings and seals: at an opening's peak speed (~30 rad/s) 5 % of TOf
+    "viscous_friction": {"c_Nms": 1.0},
     # coil contact: local rate at the compressed end ±30 % of nominal (e = ±0.15)
     "spring_nonlinearity": {"e": 0.15},
     # independent linearity of a resistive transducer ±0.5 % of the 1 rad stroke: 5 mrad bow
@@ -68,5 +70,5 @@ def check_effects(effects: dict, operation: str) -> None:
         if operation not in OPERATIONS[name]:
             raise ValueError(f"effect {name!r} acts on {' and '.join(OPERATIONS[name])}, "
                              f"not on {operation}")
-        if not (isinstance(s, (int, float)) and s >= 0 and s == s and s != float("inf")):
+        if not (isinstance(s, (int, float)) and math.isfinite(s) and s >= 0):
             raise ValueError(f"strength of {name!r} must be a finite number ≥ 0, got {s!r}")

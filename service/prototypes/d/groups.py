@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import json
 import operator
-from datetime import datetime, timedelta, timezone
+from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
 import numpy as np
@@ -20,14 +20,19 @@ from service.durable import write_durably
 from service.prototypes.d.effects import EFFECTS, OPERATIONS, OUTSIDE, check_effects
 from service.prototypes.d.noise import draw_noise, vibration_noise
 from service.prototypes.d.simulate import SAMPLE_RATE_HZ, sensor_reading, true_travel
-from service.prototypes.d.unit import draw_conditions, draw_unit, physical, reduced_truth
+from service.prototypes.d.unit import (
+    draw_conditions,
+    draw_unit,
+    physical,
+    reduced_truth,
+)
 
 SAMPLES = {"open": 20_480, "close": 32_000}  # 160 ms and 250 ms, as the shared samples
 PRETRIGGER_S = 0.020
 TRAVEL_FULL_SCALE_RAD = 3.14159   # 0–180° transducer (config/breakers/reference-252kV.toml)
 VIBRATION_FULL_SCALE_G = 1000.0
 STRENGTH_RANGE = (0.5, 1.5)       # each effect's s, in units of its scale
-_EPOCH = datetime(2026, 1, 5, 8, 0, tzinfo=timezone.utc)
+_EPOCH = datetime(2026, 1, 5, 8, 0, tzinfo=UTC)
 
 
 def _count(name, value, minimum=0):

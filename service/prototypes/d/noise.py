@@ -18,7 +18,8 @@ from scipy.signal import lfilter
 
 MODES_HZ = (350.0, 900.0, 2300.0)  # frame, mechanism housing, pole column: each ±10 % per unit
 SHOCKS = {"latch": 1.0, "buffer": 0.6, "end": 0.3, "touch": 0.5, "closed": 1.0}
-MOTION_FORCING = 0.02   # white forcing per sample at peak speed, relative to the latch impulse
+MOTION_FORCING = 0.005  # white forcing per sample at peak speed, relative to the latch impulse:
+#                         some tens of g of running vibration against a 300-500 g latch shock
 VIBRATION_WHITE_G = 0.5  # accelerometer noise floor [g]
 
 
@@ -53,12 +54,12 @@ def vibration_noise(rng: np.random.Generator, character: dict, rate: np.ndarray,
     speed = np.abs(rate) / max(float(np.abs(rate).max()), 1e-12)
     force = MOTION_FORCING * speed * rng.standard_normal(n)
     for name, t_ev in events_s.items():
-        k = int(round(t_ev * fs))
+        k = round(t_ev * fs)
         if 0 <= k < n:
             force[k] += SHOCKS[name] * rng.uniform(0.7, 1.3)
     disp = np.zeros(n)
     acc = np.zeros(n)
-    latch = int(round(events_s["latch"] * fs))
+    latch = round(events_s["latch"] * fs)
     for f, zeta, weight in zip(character["modes_hz"], character["damping"], character["weights"]):
         q = _mode(fs, f, zeta, force)
         disp += weight * q

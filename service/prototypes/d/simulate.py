@@ -15,7 +15,12 @@ from functools import lru_cache
 import numpy as np
 
 from service.prototypes.d.cam import cam_table
-from service.prototypes.d.dynamics import INDEX, close_travel, integrate_close, integrate_open
+from service.prototypes.d.dynamics import (
+    INDEX,
+    close_travel,
+    integrate_close,
+    integrate_open,
+)
 from service.prototypes.d.effects import SCALES
 from service.prototypes.d.unit import design, parameter_vector, physical
 
@@ -67,7 +72,7 @@ def true_travel(operation: str, constants: dict, effects: dict, release_s: float
     P = parameter_vector(operation, constants, effects, v_ref=design_buffer_speed())
     t = np.arange(n_samples) / sample_rate
     dt = 1.0 / (sample_rate * SUBSTEPS)
-    n = int(math.ceil((t[-1] - release_s) / dt)) + 1
+    n = math.ceil((t[-1] - release_s) / dt) + 1
     t_fine = release_s + dt * np.arange(n + 1)
     if operation == "open":
         states = integrate_open(P, dt, n)

@@ -34,7 +34,7 @@ SENSOR_GAIN = 0.01        # transducer gain within ±1 %
 SENSOR_OFFSET_RAD = 2e-3  # and zero within ±2 mrad
 VISCOSITY_ACTIVATION_K = 3540.0  # Andrade: MIL-PRF-5606-class oil, ν(−30 °C)/ν(20 °C) ≈ 12
 DAMPING_VISCOSITY_EXPONENT = 0.4  # buffer: part laminar gap (∝ ν), part orifice (∝ ν⁰)
-GREASE_FRICTION_PER_K = 0.004     # Coulomb friction +20 % at −30 °C, −8 % at +40 °C
+GREASE_FRICTION_PER_K = 0.002     # Coulomb friction +10 % at −30 °C, −4 % at +40 °C
 SPRING_RATE_PER_K = -2.5e-4       # spring steel's shear modulus, dG/dT / G
 
 

@@ -12,7 +12,7 @@ from drivers.capture_file import read_comtrade
 from service.prototypes.d import EFFECTS, OPERATIONS, OUTSIDE, write_groups
 from service.prototypes.d.groups import SAMPLES
 
-SMALL = dict(per_effect=1, controls=1, two_effect=2, outside=1, captures_per_group=2)
+SMALL = {"per_effect": 1, "controls": 1, "two_effect": 2, "outside": 1, "captures_per_group": 2}
 OPEN_KEYS = {"AO", "BO", "CO", "DO", "EO"}
 CLOSE_KEYS = {"AC", "BC", "CC", "DC"}
 
@@ -76,7 +76,7 @@ def test_captures_read_back_with_their_clean_travel(small):
 
 
 def test_deterministic_for_a_seed(tmp_path):
-    sizes = dict(per_effect=0, controls=1, two_effect=0, outside=0, captures_per_group=1)
+    sizes = {"per_effect": 0, "controls": 1, "two_effect": 0, "outside": 0, "captures_per_group": 1}
     a = write_groups(tmp_path / "a", seed=11, **sizes)
     b = write_groups(tmp_path / "b", seed=11, **sizes)
     c = write_groups(tmp_path / "c", seed=12, **sizes)
@@ -89,11 +89,11 @@ def test_deterministic_for_a_seed(tmp_path):
 
 
 @pytest.mark.parametrize("kwargs,words", [
-    (dict(seed=-1), "seed must be at least 0"),
-    (dict(seed="3"), "seed must be a whole number"),
-    (dict(seed=1, per_effect=-2), "per_effect must be at least 0"),
-    (dict(seed=1, captures_per_group=0), "captures_per_group must be at least 1"),
-    (dict(seed=1, two_effect=1.5), "two_effect must be a whole number"),
+    ({"seed": -1}, "seed must be at least 0"),
+    ({"seed": "3"}, "seed must be a whole number"),
+    ({"seed": 1, "per_effect": -2}, "per_effect must be at least 0"),
+    ({"seed": 1, "captures_per_group": 0}, "captures_per_group must be at least 1"),
+    ({"seed": 1, "two_effect": 1.5}, "two_effect must be a whole number"),
 ])
 def test_bad_arguments_are_refused_in_words(tmp_path, kwargs, words):
     with pytest.raises(ValueError, match=words):

@@ -51,7 +51,7 @@ def test_effect_acts_where_it_claims(setup, name, op):
 @pytest.mark.parametrize("name", ["orifice_buffer", "viscous_friction", "rod_elasticity", "puffer_gas"])
 def test_strength_orders_the_change(setup, name):
     """A stronger effect moves the curve further (s = 0.5 vs 1.5)."""
-    unit, c, base = setup
+    _unit, c, base = setup
     rms = [np.sqrt(np.mean((true_travel("open", c, {name: s}, RELEASE_S, SAMPLES["open"]).travel
                             - base["open"].travel) ** 2)) for s in (0.5, 1.5)]
     assert rms[1] > rms[0] > 0
