@@ -53,3 +53,16 @@ def analyser_comparison(analyser: dict | None, record: dict | None, operation: s
                          "difference": ours_u - theirs})
             break
     return rows
+
+
+def record_view(capture, operation: str, breaker, fit) -> dict:
+    """The operation page's analyser block: the recorded channels and marked instants
+    (``service.acquisition.recorded_channels.channel_plot``) and ``analyser_comparison`` rows
+    (empty until the fit is done, or for a capture without analyser results)."""
+    from ..acquisition.recorded_channels import channel_plot
+
+    out = channel_plot(capture, operation, breaker.stroke)
+    result = (fit.result or {}) if fit is not None and fit.status == "done" else {}
+    out["analyser_comparison"] = analyser_comparison((getattr(capture, "meta", None) or {}).get("analyser"),
+                                                     result.get("characteristics_record"), operation)
+    return out
