@@ -10,7 +10,11 @@ import pytest
 
 from drivers.capture_file import load_capture_bytes, read_capture
 from service.acquisition.capture_file import breaker_reading
-from service.acquisition.recorded_channels import channel_indices, operation_events, recorded_channels
+from service.acquisition.recorded_channels import (
+    channel_indices,
+    operation_events,
+    recorded_channels,
+)
 from service.breaker_file import load_breaker
 from service.decimation import shared_minmax_indices
 from service.estimation.analyser_compare import analyser_comparison
@@ -30,7 +34,7 @@ def ops():
 
 
 def test_every_operation_of_a_co_record_with_every_channel(ops):
-    b, found = ops
+    _, found = ops
     assert [k for _, k in found] == ["close", "open"]
     for cap, _ in found:
         assert {(a.name, a.unit) for a in cap.aux} == {("C1", "A"), ("C2", "A"), ("C3", "A"), ("C4", "A"), ("C5", "A"),
