@@ -13,9 +13,9 @@ from __future__ import annotations
 import math
 
 # (label, unit, hvcb key in characteristics_record, hvcb scale to unit, analyser result names
-#  tried in order) per operation; {op} is "open" or "close".
+#  tried in order) per operation; {op} is "open" or "close", {word} "opening" or "closing".
 QUANTITIES = (
-    ("{word} time", "ms", "operating_time_s", 1e3, ("{op}_time_ms",)),
+    ("{word} time", "ms", "operating_time_s", 1e3, ("{op}_time_ms", "{word}_time_ms")),
     ("speed", "m/s", "average_speed_m_s", 1.0, ("{op}_velocity_m_s", "{op}_datum_velocity_m_s")),
     ("overtravel", "mm", "overtravel_mm", 1.0, ("{op}_over_travel_mm",)),
     ("rebound", "mm", "rebound_mm", 1.0, ("{op}_rebound_mm",)),
@@ -42,7 +42,7 @@ def analyser_comparison(analyser: dict | None, record: dict | None, operation: s
         ours = _number(record.get(key))
         if ours is None:
             continue
-        for name in (n.format(op=operation) for n in names):
+        for name in (n.format(op=operation, word=word) for n in names):
             per = results.get(name)
             theirs = _number(per.get(channel) if isinstance(per, dict) else per)
             if theirs is None or theirs == 0:

@@ -101,6 +101,7 @@ def test_analyser_rows_only_where_both_exist():
     assert rows[0]["difference"] == pytest.approx(0.05)
     close = analyser_comparison(analyser, record, "close")
     assert [(r["quantity"], r["difference"]) for r in close] == [("overtravel", -1.0)]
-    timed = analyser_comparison({"results": {"open_time_ms": {"T1": 30.0}}}, record, "open")
-    assert timed[0]["quantity"] == "opening time" and timed[0]["difference"] == pytest.approx(1.0)
+    for name in ("open_time_ms", "opening_time_ms"):
+        timed = analyser_comparison({"results": {name: {"T1": 30.0}}}, record, "open")
+        assert timed[0]["quantity"] == "opening time" and timed[0]["difference"] == pytest.approx(1.0)
     assert analyser_comparison(None, record, "open") == [] and analyser_comparison(analyser, None, "open") == []
