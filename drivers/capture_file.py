@@ -139,8 +139,10 @@ def analyser_capture(text: str, *, source: str, travel_channel: str = "travel", 
             "analyser": {"profile": record.profile, "rate_source": record.rate_source, "bare": record.bare,
                          "metadata": record.metadata, "results": record.results,
                          "unparsed": [dict(u) for u in record.unparsed]}}
+    # the record's quirks stay visible on every operation stored from it (the page's flags)
+    flags = (f"analyser header: {len(record.unparsed)} field(s) kept as text",) if record.unparsed else ()
     cap = Capture(travel=np.asarray(travel, dtype=float), sample_rate=float(record.sample_rate), vibration=None,
-                  source=source, meta=meta, aux=aux)
+                  source=source, meta=meta, aux=aux, flags=flags)
     check_finite(cap)
     return cap
 

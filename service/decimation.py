@@ -55,8 +55,10 @@ def shared_minmax_indices(series, points: int) -> np.ndarray:
     """Sorted sample indices that keep every bucket's minimum and maximum of each of several
     sample-aligned series (travel, coil currents, DCRM), so they share one time axis.
 
-    The buckets per series are ``points // (2·len(series))``, so about ``points`` indices come
-    back in all (at most ``points + 2``); all of them when the series are that short.
+    ``(points − 2) // (2·len(series))`` buckets per series (at least one): each gives at most two
+    indices a bucket plus the first and last sample, which all share, so at most ``points``
+    indices come back (``2·len(series) + 2`` when ``points`` is smaller); all of them when the
+    series are no longer than ``points``.
     """
     series = [np.asarray(y, dtype=float) for y in series]
     if not series:

@@ -87,7 +87,7 @@ def detect_from_coils(capture: Capture, settings: TriggerSettings) -> list[Detec
         if cmd is not None:
             meta.update(command_s=(cmd - a) / fs, command_source="coil " + "/".join(names))
         sub = Capture(travel=T[a:b].copy(), sample_rate=fs, vibration=None, source=capture.source,
-                      first_sample_index=first + a, travel_limits=capture.travel_limits, meta=meta,
+                      flags=tuple(capture.flags), first_sample_index=first + a, travel_limits=capture.travel_limits, meta=meta,
                       start_time=None if capture.start_time is None
                       else capture.start_time + timedelta(seconds=a / fs),
                       aux=tuple(replace(x, data=x.data[a:b].copy()) for x in capture.aux))

@@ -71,3 +71,15 @@ def operation_events(capture: Capture, operation: str, stroke: float) -> dict:
     if found is not None:
         out["contact_s"], out["contact_source"] = found, f"travel at {frac:.0%} of the stroke"
     return out
+
+
+def channel_plot(capture, operation: str, stroke: float, *, points: int = 2000) -> dict:
+    """What the operation page draws under the travel: ``{"channels": {"t": [s], "series":
+    {name: {kind, unit, values}}}, "events": ...}``, the channels min/max-decimated together to
+    about ``points`` samples; ``{"channels": None, "events": None}`` for a capture without any
+    (a DAQ's travel and vibration, or a pruned capture's preview)."""
+    if not getattr(capture, "aux", ()):
+        return {"channels": None, "events": None}
+    idx = channel_indices(capture, points)
+    return {"channels": {"t": [round(float(v), 7) for v in capture.t[idx]], "series": recorded_channels(capture, idx)},
+            "events": operation_events(capture, operation, stroke)}

@@ -13,9 +13,9 @@ from __future__ import annotations
 import math
 
 # (label, unit, hvcb key in characteristics_record, hvcb scale to unit, analyser result names
-#  tried in order) per operation; {op} is "open" or "close".
+#  tried in order) per operation; {op} is "open" or "close", {word} "opening" or "closing".
 QUANTITIES = (
-    ("{word} time", "ms", "operating_time_s", 1e3, ("{op}_time_ms",)),
+    ("{word} time", "ms", "operating_time_s", 1e3, ("{op}_time_ms", "{word}_time_ms")),
     ("speed", "m/s", "average_speed_m_s", 1.0, ("{op}_velocity_m_s", "{op}_datum_velocity_m_s")),
     ("overtravel", "mm", "overtravel_mm", 1.0, ("{op}_over_travel_mm",)),
     ("rebound", "mm", "rebound_mm", 1.0, ("{op}_rebound_mm",)),
@@ -42,7 +42,7 @@ def analyser_comparison(analyser: dict | None, record: dict | None, operation: s
         ours = _number(record.get(key))
         if ours is None:
             continue
-        for name in (n.format(op=operation) for n in names):
+        for name in (n.format(op=operation, word=word) for n in names):
             per = results.get(name)
             theirs = _number(per.get(channel) if isinstance(per, dict) else per)
             if theirs is None or theirs == 0:
@@ -53,3 +53,16 @@ def analyser_comparison(analyser: dict | None, record: dict | None, operation: s
                          "difference": ours_u - theirs})
             break
     return rows
+
+
+def record_view(capture, operation: str, breaker, fit) -> dict:
+    """The operation page's analyser block: the recorded channels and marked instants
+    (``service.acquisition.recorded_channels.channel_plot``) and ``analyser_comparison`` rows
+    (empty until the fit is done, or for a capture without analyser results)."""
+    from ..acquisition.recorded_channels import channel_plot
+
+    out = channel_plot(capture, operation, breaker.stroke)
+    result = (fit.result or {}) if fit is not None and fit.status == "done" else {}
+    out["analyser_comparison"] = analyser_comparison((getattr(capture, "meta", None) or {}).get("analyser"),
+                                                     result.get("characteristics_record"), operation)
+    return out

@@ -166,11 +166,11 @@ def _text_capture_upload(data: bytes, name: str, row, operation: str | None, ide
                                  "(damaged in transit, or the wrong key)")
     breaker = crud.breaker_model(row)
     try:
-        capture = load_capture_bytes(data, name=name, **breaker_reading(breaker))
+        record = load_capture_bytes(data, name=name, **breaker_reading(breaker))
         from service.jobs.ingest import infer_operation
 
         ops = []
-        for capture, kind in upload_operations(capture, breaker, operation):
+        for capture, kind in upload_operations(record, breaker, operation):
             if capture.travel.size < 16:
                 raise CaptureError(f"{name}: the record holds fewer than 16 samples")
             ops.append((capture, kind or infer_operation(capture)))

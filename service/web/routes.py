@@ -262,6 +262,9 @@ def operation_curves_json(request: Request, operation_id: Id, user: Reader):
     if getattr(cap, "note", None):
         body["note"] = cap.note
     body.update(operation_id=operation_id, kind=op.kind, fit_status=fit.status if fit else None)
+    from service.estimation.analyser_compare import record_view  # coil currents, DCRM, the analyser's figures
+
+    body.update(record_view(cap, op.kind, breaker, fit))
     return security_headers(JSONResponse(body))
 
 

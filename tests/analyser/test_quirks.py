@@ -187,3 +187,12 @@ def test_shared_example_reads_every_field():
     b = load_breaker(GENERIC)
     cap = read_capture(EXAMPLE, travel_channel=b.channels["travel"], to_rad=b.travel_map.to_rad)
     assert cap.travel.size == 4000 and cap.meta["analyser"]["unparsed"] == []
+
+
+def test_detect_reads_a_quirky_record_like_a_clean_one(tmp_path, capsys):
+    """The issue's 7 refused files: ∞ and '765kV' in the header; hvcb detect finds both operations."""
+    path = tmp_path / "field.csv"
+    path.write_text(quirky(("Open -Rebound(T1)(mm) :,1.50,,", "Open -Rebound(T1)(mm) :,1.50,,Close - Over Travel(T1)(mm) :,∞,,"),
+                           ("Voltage (kV) :,245", "Voltage (kV) :,765kV")), encoding="utf-8")
+    assert main(["detect", str(path), "--breaker", GENERIC, "--json"]) == 0
+    assert [o["operation"] for o in json.loads(capsys.readouterr().out)] == ["close", "open"]

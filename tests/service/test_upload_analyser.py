@@ -117,6 +117,8 @@ def test_quirky_and_shared_records_upload_through_the_same_path(env, generic):
     kept = stored_analyser_results(path)
     assert kept["results"]["open_rebound_mm"]["T1"] == "∞" and kept["metadata"]["rated_voltage_kv"] == 765.0
     assert {u["name"] for u in kept["unparsed"]} == {"open_rebound_mm", "test_date"}
+    op = env.client.get(f"/api/v1/operations/{body['operation_id']}", headers=env.h("reader")).json()
+    assert "analyser header: 2 field(s) kept as text" in op["flags"]
 
 
 def test_upload_bare_export_refused_in_words(env, generic):
