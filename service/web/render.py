@@ -56,6 +56,42 @@ def _fixed(v, decimals: int = 2, scale: float = 1.0) -> str:
     return f"{v:.{decimals}f}" if math.isfinite(v) else "—"
 
 
+def significant(v, digits: int = 3) -> str:
+    """``v`` to ``digits`` significant figures in plain notation (3419.9 -> "3420", 3.70406 -> "3.70"),
+    a minus sign for negatives, a dash for no number."""
+    try:
+        v = float(v)
+    except (TypeError, ValueError):
+        return "—"
+    if not math.isfinite(v):
+        return "—"
+    if v == 0:
+        return "0"
+    decimals = max(0, digits - 1 - math.floor(math.log10(abs(v))))
+    text = f"{round(v, decimals):.{decimals}f}"
+    return "0" if float(text) == 0 else text.replace("-", "−")
+
+
+def signed_change(rel, decimals: int = 1) -> str:
+    """A relative change as a signed percentage ("−5.0 %", "+0.3 %"); one that rounds to zero is
+    "0.0 %", never "−0.0 %"."""
+    try:
+        pct = round(float(rel) * 100, decimals)
+    except (TypeError, ValueError):
+        return "—"
+    if not math.isfinite(pct):
+        return "—"
+    if pct == 0:
+        return f"{0:.{decimals}f} %"
+    return f"{pct:+.{decimals}f} %".replace("-", "−")
+
+
+def _unit(name: str) -> str:
+    from service.mechanics.nomenclature import UNITS
+
+    return UNITS.get(name, "")
+
+
 def _pct_half_width(value, ci) -> str:
     if not ci or value in (None, 0):
         return "—"
@@ -71,7 +107,8 @@ def build_templates() -> Jinja2Templates:
     from service.errors import redact_paths
 
     # nopath: server paths cut to file names in what the page shows (D11, docs/security.md)
-    env.filters.update(utc=_utc, iso=_iso, num=_num, fixed=_fixed, pct=_pct_half_width, nopath=redact_paths)
+    env.filters.update(utc=_utc, iso=_iso, num=_num, fixed=_fixed, pct=_pct_half_width, nopath=redact_paths,
+                       sig=significant, change=signed_change, unit=_unit)
     return Jinja2Templates(env=env)
 
 
