@@ -33,15 +33,19 @@ def _iso(t: datetime | None) -> str:
     return t.astimezone(timezone.utc).isoformat().replace("+00:00", "Z")
 
 
-def _num(v, digits: int = 4) -> str:
-    """A number with ``digits`` significant digits, or a dash."""
-    if v is None:
-        return "—"
+def _finite(v) -> float | None:
+    """``v`` as a finite float, or None (no number, NaN, infinite)."""
     try:
         v = float(v)
     except (TypeError, ValueError):
-        return "—"
-    if not math.isfinite(v):
+        return None
+    return v if math.isfinite(v) else None
+
+
+def _num(v, digits: int = 4) -> str:
+    """A number with ``digits`` significant digits, or a dash."""
+    v = _finite(v)
+    if v is None:
         return "—"
     return f"{v:.{digits}g}" if abs(v) < 1e5 else f"{v:.{digits}e}"
 
@@ -59,11 +63,8 @@ def _fixed(v, decimals: int = 2, scale: float = 1.0) -> str:
 def significant(v, digits: int = 3) -> str:
     """``v`` to ``digits`` significant figures in plain notation (3419.9 -> "3420", 3.70406 -> "3.70"),
     a minus sign for negatives, a dash for no number."""
-    try:
-        v = float(v)
-    except (TypeError, ValueError):
-        return "—"
-    if not math.isfinite(v):
+    v = _finite(v)
+    if v is None:
         return "—"
     if v == 0:
         return "0"
@@ -75,12 +76,10 @@ def significant(v, digits: int = 3) -> str:
 def signed_change(rel, decimals: int = 1) -> str:
     """A relative change as a signed percentage ("−5.0 %", "+0.3 %"); one that rounds to zero is
     "0.0 %", never "−0.0 %"."""
-    try:
-        pct = round(float(rel) * 100, decimals)
-    except (TypeError, ValueError):
+    rel = _finite(rel)
+    if rel is None:
         return "—"
-    if not math.isfinite(pct):
-        return "—"
+    pct = round(rel * 100, decimals)
     if pct == 0:
         return f"{0:.{decimals}f} %"
     return f"{pct:+.{decimals}f} %".replace("-", "−")
