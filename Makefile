@@ -19,12 +19,12 @@ $(PY):
 # pip's "Location" warning (the venv's scripts dir is not on PATH) is expected: the README says so.
 $(CORE): pyproject.toml | $(PY)
 	$(PIP) -e . 2>&1 | grep -v "^WARNING: Location\|^WARNING: The script" ; test $${PIPESTATUS[0]} -eq 0
-	$(PY) -c "import service, numba, cma, comtrade"
+	$(PY) -c "import service.estimation.cmaes, numba, comtrade"
 	touch $@
 
 $(FULL): pyproject.toml | $(PY)
 	$(PIP) -e ".[$(TEST_EXTRAS)]" 2>&1 | grep -v "^WARNING: Location\|^WARNING: The script" ; test $${PIPESTATUS[0]} -eq 0
-	$(PY) -c "import service, numba, cma, comtrade, pytest"
+	$(PY) -c "import service.estimation.cmaes, numba, comtrade, pytest"
 	touch $(CORE) $@
 
 setup: $(FULL)

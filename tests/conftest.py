@@ -1,12 +1,26 @@
+"""Fixtures every test may use, the lanes' default addresses, and the run's one-line-per-lane summary.
+
+A lane is a group of tests that needs a service: PostgreSQL, Redis (Celery), Chromium, the shared
+data folder, the IEC 61850 library. Each runs whenever its service answers at its default address
+(below) and skips with the reason otherwise. Set ``HVCB_TEST_POSTGRES_URL`` or
+``HVCB_TEST_REDIS_URL`` to another address, or to an empty string to turn that lane off.
+"""
+
 import os
 import threading
 import time
+from collections import Counter, defaultdict
 from pathlib import Path
 
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 BREAKER_FILE = REPO / "config" / "breakers" / "reference-252kV.toml"
+
+# The services' default addresses (PostgreSQL's and Redis's own defaults; the database `test`
+# is only the maintenance connection: each session creates and drops scratch databases beside it).
+os.environ.setdefault("HVCB_TEST_POSTGRES_URL", "postgresql+psycopg://postgres@127.0.0.1:5432/test")
+os.environ.setdefault("HVCB_TEST_REDIS_URL", "redis://127.0.0.1:6379/0")
 
 
 def shared_dir() -> Path:
@@ -40,3 +54,67 @@ def no_leaked_threads():
             break
         time.sleep(0.01)
     assert not leaked, f"test leaked threads: {[t.name for t in leaked]}"
+
+
+# -- the lanes' summary --------------------------------------------------------------------------
+def _lanes_of(item) -> list[str]:
+    """The lanes a test belongs to: by its markers and fixtures; the shared-data lane by its module
+    reading ``shared_dir()`` or the ``samples_dir`` fixture."""
+    names = set(getattr(item, "fixturenames", ()))
+    lanes = []
+    if item.get_closest_marker("postgres") or names & {"pg_server", "pg_database"}:
+        lanes.append("PostgreSQL")
+    if item.get_closest_marker("redis"):
+        lanes.append("Celery/Redis")
+    if "browser" in names:
+        lanes.append("browser (Chromium)")
+    if "iec61850" in str(item.path):
+        lanes.append("IEC 61850")
+    if "samples_dir" in names or _reads_shared(item.path):
+        lanes.append("shared data (../shared)")
+    return lanes
+
+
+_SHARED_READERS: dict[Path, bool] = {}
+
+
+def _reads_shared(path: Path) -> bool:
+    if path not in _SHARED_READERS:
+        _SHARED_READERS[path] = "shared_dir()" in path.read_text(encoding="utf-8", errors="replace")
+    return _SHARED_READERS[path]
+
+
+_ITEM_LANES: dict[str, list[str]] = {}
+_RAN: Counter = Counter()
+_SKIPPED: dict[str, Counter] = defaultdict(Counter)
+
+
+def pytest_collection_modifyitems(items):
+    for item in items:
+        _ITEM_LANES[item.nodeid] = _lanes_of(item)
+
+
+def pytest_runtest_logreport(report):
+    lanes = _ITEM_LANES.get(report.nodeid, [])
+    if report.skipped:
+        reason = report.longrepr[2] if isinstance(report.longrepr, tuple) else str(report.longrepr)
+        reason = reason.removeprefix("Skipped: ")
+        _SKIPPED[lanes[0] if lanes else "other"][reason] += 1
+    elif report.when == "call":
+        for lane in lanes or ["core (SQLite, in-process)"]:
+            _RAN[lane] += 1
+
+
+def pytest_terminal_summary(terminalreporter):
+    """One summary at the end of the run: each lane with the tests it ran, and what skipped, why."""
+    if not _ITEM_LANES:
+        return
+    w = terminalreporter
+    w.section("lanes")
+    for lane, n in sorted(_RAN.items()):
+        w.line(f"ran      {lane}: {n} test(s)")
+    for lane, reasons in sorted(_SKIPPED.items()):
+        for reason, n in reasons.most_common():
+            w.line(f"skipped  {lane}: {n} test(s): {reason}")
+    if not _SKIPPED:
+        w.line("skipped  none")

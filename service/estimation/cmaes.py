@@ -8,11 +8,18 @@ are scored at their projection plus a quadratic penalty.
 from __future__ import annotations
 
 import random
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
-from cma import purecma
+
+with warnings.catch_warnings():
+    # cma's package tries matplotlib for its own cma.plot() and warns when it is absent (the core
+    # install has none). hvcb never plots through cma (service/plots.py, the plots extra), so the
+    # warning is third-party noise on every command; only this import's warning is silenced.
+    warnings.filterwarnings("ignore", message="Could not import matplotlib", category=UserWarning)
+    from cma import purecma
 
 
 @dataclass(frozen=True)

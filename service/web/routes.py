@@ -19,17 +19,19 @@ from sqlalchemy.exc import IntegrityError
 from starlette.background import BackgroundTask
 
 from drivers.capture import CaptureError
+from service.mechanics.nomenclature import CLOSING, OPENING, UNITS
 from service.storage import crud, crud_web
 from service.storage.crud_alarms import annunciated
 from service.storage.models import DiagnosisRow, utcnow
 
 from . import auth
+from .alarm_values import alarm_values
 from .auth import WebAuthError, WebUser
 from .handlers import (MAX_ID, AdminPost, Id, OperatorPost, Reader, ReaderPost, back, db_session,
                        form_temperature, not_found, safe_next)
 from .render import page, security_headers
-from .series import CHARACTERISTICS, operation_curves, sparkline
-from .trends import CLOSING, OPENING, UNITS
+from .series import CHARACTERISTICS, operation_curves, spark_axis, sparkline
+
 
 router = APIRouter(include_in_schema=False)
 
@@ -129,8 +131,10 @@ def _fleet(session, settings) -> list[dict]:
             vals = crud_web.recent_values(session, breaker_id=b.id, name=name, limit=30)
             if vals:
                 t, v, lo, hi = vals[-1]
+                trend = [x[1] for x in vals]
+                axis = spark_axis(trend)
                 latest[name] = {"value": v, "lo": lo, "hi": hi, "time": t, "unit": UNITS[name],
-                                "spark": sparkline([x[1] for x in vals])}
+                                "spark": sparkline(trend, axis=axis), "axis": axis, "n": len(trend)}
         rows.append({"breaker": b, "status": breaker_status(session, b.id, settings, alarms),
                      "last": crud_web.last_operation_times(session, breaker_id=b.id), "latest": latest,
                      "alarms": alarms, "shelved": [a for a in active if a not in alarms], "daq": daq.get(b.id)})
@@ -164,7 +168,8 @@ def breaker_page(request: Request, breaker_id: Id, user: Reader,
                "daq": daq_states(session, settings).get(b.id),
                "last": crud_web.last_operation_times(session, breaker_id=b.id),
                "watched": dict(settings.drift_settings.watched), "nav": "fleet",
-               "OPENING": OPENING, "CLOSING": CLOSING, "CHARACTERISTICS": CHARACTERISTICS}
+               "OPENING": OPENING, "CLOSING": CLOSING, "CHARACTERISTICS": CHARACTERISTICS,
+               "alarm_values": alarm_values(session, alarms)}
         from .routes_diagnoses import breaker_diagnosis_context
 
         ctx.update(breaker_diagnosis_context(request, session, b))
@@ -329,7 +334,8 @@ def download_capture(request: Request, operation_id: Id, user: Reader):
 def alarms_page(request: Request, user: Reader, state: Annotated[str, Query(pattern="^(active|all)$")] = "active"):
     with db_session(request) as session:
         rows = crud_web.alarms_with_breakers(session, state=state)
-    return page(request, "alarms.html", {"rows": rows, "state": state, "nav": "alarms"})
+        values = alarm_values(session, [a for a, _ in rows])
+    return page(request, "alarms.html", {"rows": rows, "state": state, "nav": "alarms", "values": values})
 
 
 @router.post("/alarms/{alarm_id}/ack")

@@ -14,6 +14,7 @@ from service.jobs import alarm_actions as actions
 from service.storage import crud
 
 from .render import page
+from .alarm_values import alarm_values
 from .handlers import AdminPost, Id, OperatorPost, Reader, back, db_session
 
 router = APIRouter(include_in_schema=False)
@@ -82,7 +83,9 @@ def breaker_alarms_page(request: Request, breaker_id: Id, user: Reader):
         b = _breaker(session, breaker_id)
         evidence = {p: actions.evidence(session, breaker_id=b.id, parameter=p, settings=settings, limit=400)
                     for p in settings.watched}
-        ctx = {"b": b, "nav": "alarms", "history": list(reversed(actions.history(session, breaker_id=b.id))),
+        history = list(reversed(actions.history(session, breaker_id=b.id)))
+        ctx = {"b": b, "nav": "alarms", "history": history,
+               "alarm_values": alarm_values(session, [h["alarm"] for h in history]),
                "compensation": actions.compensation(session, breaker_id=b.id, settings=settings),
                "evidence": evidence, "plots": {p: plot(e) for p, e in evidence.items()},
                "max_shelve_h": int(MAX_SHELVE.total_seconds() // 3600)}

@@ -39,12 +39,34 @@ def finite_or_none(v, digits: int | None = None):
     return round(v, digits) if digits is not None else v
 
 
-def sparkline(values: list[float], width: float = 120, height: float = 28, pad: float = 2) -> str:
-    """SVG polyline points for a small trend (oldest first)."""
+# The fleet sparklines' vertical axis spans at least ±5 % about the mean: the drift alarms' design
+# step is 5 % (docs/alarms.md: 2.5 σ at the ~2 % run-to-run spread), so a 5 % step fills half the
+# box while the fits' ordinary 1–2 % scatter stays a ripple and never looks like a collapse.
+SPARK_MIN_SPAN_REL = 0.10
+
+
+def spark_axis(values: list[float], min_span_rel: float = SPARK_MIN_SPAN_REL) -> tuple[float, float] | None:
+    """The sparkline's axis (low, high) in the values' unit: their range, widened symmetrically to
+    at least ``min_span_rel`` of the mean's magnitude; None with fewer than two values."""
+    v = [float(x) for x in values if x is not None and math.isfinite(float(x))]
+    if len(v) < 2:
+        return None
+    lo, hi = min(v), max(v)
+    need = min_span_rel * abs(sum(v) / len(v))
+    if hi - lo < need:
+        mid = (hi + lo) / 2
+        lo, hi = mid - need / 2, mid + need / 2
+    return lo, hi
+
+
+def sparkline(values: list[float], width: float = 120, height: float = 28, pad: float = 2,
+              axis: tuple[float, float] | None = None) -> str:
+    """SVG polyline points for a small trend (oldest first), on ``axis`` (low, high) when given,
+    else on the values' own range."""
     v = [float(x) for x in values if x is not None and math.isfinite(float(x))]
     if len(v) < 2:
         return ""
-    lo, hi = min(v), max(v)
+    lo, hi = axis if axis is not None else (min(v), max(v))
     span = (hi - lo) or abs(hi) * 1e-3 or 1.0
     step = (width - 2 * pad) / (len(v) - 1)
     return " ".join(f"{pad + i * step:.1f},{pad + (height - 2 * pad) * (1 - (x - lo) / span):.1f}"

@@ -13,13 +13,12 @@ import json
 from dataclasses import dataclass, field
 from threading import Event, Lock
 
+from service.mechanics.nomenclature import CLOSING, OPENING, UNITS
 from service.storage import crud, crud_web
 
 from .series import (CHARACTERISTICS, DriftTraces, characteristics_series, epoch, finite_or_none,
                      minmax_indices)
 
-OPENING, CLOSING = ("AO", "BO", "DO", "EO"), ("AC", "BC", "CC")
-UNITS = {"AO": "s⁻²", "BO": "s⁻²", "DO": "s⁻¹", "EO": "s⁻²", "AC": "s⁻²", "BC": "–", "CC": "s⁻²", "DC": "s⁻²"}
 DISPLAY_BUCKETS = 600  # per chart: ~1,200 plotted points, more than a chart has pixel columns
 
 

@@ -7,10 +7,11 @@ import json
 from datetime import datetime, timedelta, timezone
 
 import numpy as np
+import pytest
 
 from service.storage import crud
 from service.storage.spool import Spool
-from service.web.series import minmax_buckets, minmax_indices, sparkline
+from service.web.series import minmax_buckets, minmax_indices, spark_axis, sparkline
 from service.web.trends import TrendStore
 
 T0 = datetime(2026, 3, 1, tzinfo=timezone.utc)
@@ -46,6 +47,18 @@ def test_sparkline_spans_its_box():
     pts = [tuple(map(float, p.split(","))) for p in sparkline([1.0, 3.0, 2.0], width=100, height=20, pad=0).split()]
     assert pts == [(0.0, 20.0), (50.0, 0.0), (100.0, 10.0)]
     assert sparkline([1.0]) == ""
+
+
+def test_sparkline_axis_keeps_noise_small_and_a_fall_whole():
+    """BO's 1 % scatter stays within the middle tenth of a ±5 % box; a 42 % fall of DO sets its own range."""
+    noise = [4800.0 * (1 + 0.01 * x) for x in (-1, 1, -0.5, 0.5, 0)]
+    lo, hi = spark_axis(noise)
+    assert hi - lo == pytest.approx(0.10 * 4800.0)
+    ys = [float(p.split(",")[1]) for p in sparkline(noise, height=28, pad=2, axis=(lo, hi)).split()]
+    assert max(ys) - min(ys) <= 0.2 * 24 + 1e-9  # 2 % of the value in a 10 % box: a fifth of the height
+    fall = [40.0, 38.0, 30.0, 23.2]
+    assert spark_axis(fall) == (23.2, 40.0)
+    assert spark_axis([1.0]) is None
 
 
 def _store_fits(env, n: int, start: int, *, do_scale=1.0, time_offset=timedelta(0)) -> None:

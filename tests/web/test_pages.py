@@ -113,7 +113,6 @@ def test_breaker_page_draws_every_chart(live, ctx):
     legend = page.locator('[data-chart="param-DO"] .u-legend').inner_text()
     assert "DO" in legend and "95 % CI" in legend and "baseline mean" in legend and "lower" not in legend
     assert page.locator("#operations tr[data-operation-id]").count() == 15
-    screenshot(page, "breaker")
     clean(log)
 
 
@@ -174,7 +173,6 @@ def test_operator_acknowledges_an_alarm_and_a_reader_cannot(live, browser):
     page.goto(live.base + "/alarms")
     card = page.locator(f'[data-alarm-id="{alarm_id}"]')
     assert "baseline" in card.inner_text().lower()  # the evidence is shown
-    screenshot(page, "alarms")
     card.locator('input[name="comment"]').fill("buffer inspection booked")
     card.locator("[data-ack]").click()
     page.wait_for_selector(f'[data-alarm-id="{alarm_id}"][data-state="acknowledged"]')

@@ -148,9 +148,14 @@ def canvas_ink(page, selector: str) -> int:
     }""", selector)
 
 
+TEST_MARKUP = ("<img", "onerror", "<script")  # the security tests' strings: never in the docs' pictures
+
+
 def screenshot(page, name: str) -> None:
     target = os.environ.get("HVCB_WEB_SCREENSHOTS")
     if target:
+        text = page.locator("body").inner_text()
+        assert not any(m in text for m in TEST_MARKUP), f"the {name} screenshot would show a test string"
         from PIL import Image
 
         Path(target).mkdir(parents=True, exist_ok=True)

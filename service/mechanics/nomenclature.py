@@ -1,0 +1,23 @@
+"""The fitted parameters' names and units: the one mapping every page, file and answer uses.
+
+From the nomenclature of docs/models.md (Yan et al. 2026, Section 2): each parameter is a
+stiffness, resistance or damping term divided by an inertia, so its unit follows from that
+quotient (N·m/rad ÷ kg·m² = s⁻²; N·m·s/rad ÷ kg·m² = s⁻¹; an inertia ratio has none).
+"""
+
+from __future__ import annotations
+
+OPENING = ("AO", "BO", "DO", "EO")
+CLOSING = ("AC", "BC", "CC")
+
+UNITS = {
+    "AO": "s⁻²",  # kO·rO²/J2: opening spring stiffness factor
+    "BO": "s⁻²",  # (kO·xO1·rO − TOf)/J2: opening resistance factor
+    "CO": "s⁻¹",  # caec·raec²/J2: puffer damping factor (structural)
+    "DO": "s⁻¹",  # cb·rb²/J2: buffer damping factor
+    "EO": "s⁻²",  # kb·rb²/J2: buffer stiffness factor
+    "AC": "s⁻²",  # kC·rC·d/J1: closing spring stiffness factor
+    "BC": "–",    # J2/J1: inertia factor (a ratio)
+    "CC": "s⁻²",  # (TCf + kO·xO0·rO)/J2: closing resistance factor
+    "DC": "s⁻²",  # kO·rO²/J2 = AO, seen while closing
+}
