@@ -59,6 +59,8 @@ def test_every_operation_documents_every_error_with_the_one_error_body(env):
                 assert entry["description"] not in ("Additional Response", "Validation Error"), (where, status)
         seen += 1
     assert seen >= 30
+    ids = [op["operationId"] for _, _, op in _operations(doc)]
+    assert len(set(ids)) == len(ids) and "list_breakers" in ids  # a generated client's function names
     health = doc["paths"]["/healthz"]["get"]
     assert {} in health["security"]  # public; a key is optional (it adds details)
     metrics = doc["paths"]["/metrics"]["get"]["responses"]

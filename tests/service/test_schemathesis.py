@@ -24,15 +24,14 @@ from tests.live_server import LiveServer
 pytest.importorskip("schemathesis")
 
 EXAMPLES_PER_OPERATION = 30
-REVOKE = "revoke_key_api_v1_keys__key_id__delete"
+REVOKE = "revoke_key"
 # Three operations check content that JSON Schema cannot describe: a breaker file must be TOML
 # that builds a breaker, an upload must be a readable capture, and a breaker diagnosis needs
 # stored operations. A schema-valid request may be refused there with 422 in words; every other
 # operation must accept what its schema allows.
 CONFIG = """
 [[operations]]
-include-operation-id = ["create_breaker_api_v1_breakers_post", "upload_capture_api_v1_breakers__breaker_id__captures_post",
-                        "request_breaker_diagnosis_api_v1_breakers__breaker__diagnoses_post"]
+include-operation-id = ["create_breaker", "upload_capture", "request_breaker_diagnosis"]
 checks.positive_data_acceptance.expected-statuses = ["2xx", "401", "403", "404", "409", "422", "429"]
 """
 
