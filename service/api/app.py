@@ -22,6 +22,7 @@ from service.storage import crud
 from service.storage.db import make_engine, session_factory
 from service.storage.schema import NotMigrated, check_schema  # noqa: F401 (NotMigrated: callers catch it)
 
+from .contract import operation_id
 from .guard import RequestGuard
 from .methods import AllowedMethods
 from .keys import KeyCache, api_key_header, authorise_key, require
@@ -148,6 +149,7 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
             os.umask(old_umask)
 
     app = FastAPI(title="hvcb", version="1", lifespan=lifespan, docs_url=None, redoc_url=None,
+                  generate_unique_id_function=operation_id,
                   description="Condition monitor for spring-operated HV circuit-breaker mechanisms. "
                               "Send an API key in X-API-Key. Times are UTC ISO-8601 with Z.")
     app.state.settings = settings

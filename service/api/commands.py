@@ -74,6 +74,14 @@ def cmd_migrate(args) -> int:
     return 0
 
 
+def _recovery(data_dir) -> str:
+    """The command that prints a new admin key for the service whose data folder is ``data_dir``."""
+    where = f"HVCB_DATA_DIR={data_dir}"
+    if os.environ.get("HVCB_DEMO_DATABASE_URL"):  # the demo on another database (load benches)
+        where += " HVCB_DATABASE_URL=$HVCB_DEMO_DATABASE_URL"
+    return f"{where} hvcb key rescue --role admin"
+
+
 def cmd_key(args) -> int:
     from service.storage import crud
     from service.storage.db import make_engine, session_factory
@@ -171,6 +179,8 @@ def cmd_demo(args) -> int:
                   f"  curl -s -H \"X-API-Key: $KEY\" '{url}/api/v1/breakers/1/parameters?name=DO'\n"
                   f"  curl -s -H \"X-API-Key: $KEY\" '{url}/api/v1/alarms?state=active'\n"
                   f"  curl -s {url}/healthz\n"
+                  f"Locked out (the admin key revoked or lost)? A new admin key, while this runs:\n"
+                  f"  {_recovery(demo_dir)}\n"
                   f"The scripted history: healthy operations, then a buffer oil leak (DO falling). "
                   f"Fits appear within seconds; a DO alarm within about two minutes. Ctrl-C stops.\n", flush=True)
             while not stop.wait(1.0):

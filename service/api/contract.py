@@ -92,6 +92,13 @@ def complete(op: dict) -> None:
     op["responses"] = dict(sorted(responses.items()))
 
 
+def operation_id(route) -> str:
+    """The operation's id in the document, and so the function's name in a generated client: the
+    route function's own name (``list_breakers``), not FastAPI's default with the path appended.
+    Unique by test (tests/service/test_api_contract.py)."""
+    return route.name
+
+
 def contract(app: FastAPI) -> dict:
     """The app's OpenAPI document, completed (built once, then cached like FastAPI's own)."""
     if app.openapi_schema:

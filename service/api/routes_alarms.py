@@ -29,7 +29,8 @@ ERRORS = {401: {"model": s.Message}, 403: {"model": s.Message}, 404: {"model": s
 
 
 class Shelve(BaseModel):
-    minutes: float = Field(..., gt=0, le=MAX_SHELVE.total_seconds() / 60,
+    # strict: a JSON number only (true is not 1 minute; the schema says number)
+    minutes: float = Field(..., gt=0, le=MAX_SHELVE.total_seconds() / 60, strict=True,
                            description=f"how long [min], at most {MAX_SHELVE.days} days")
     reason: str = Field(..., min_length=3, max_length=2000, description="why (audited)")
 
@@ -43,7 +44,7 @@ class OutOfService(BaseModel):
 
 
 class Temperature(BaseModel):
-    temperature_c: float = Field(..., ge=-60, le=100, allow_inf_nan=False,
+    temperature_c: float = Field(..., ge=-60, le=100, allow_inf_nan=False, strict=True,
                                  description="ambient or mechanism temperature now [C]")
 
 

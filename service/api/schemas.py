@@ -5,7 +5,7 @@ from __future__ import annotations
 from datetime import datetime, timezone
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, PlainSerializer, RootModel
+from pydantic import BaseModel, ConfigDict, Field, PlainSerializer, RootModel, WithJsonSchema
 
 from .schemas_record import OperationEvents, RecordedChannel, UploadedOperation
 
@@ -18,7 +18,9 @@ def iso_z(t: datetime | None) -> str | None:
     return t.astimezone(timezone.utc).isoformat().replace("+00:00", "Z")
 
 
-UtcTime = Annotated[datetime, PlainSerializer(iso_z, return_type=str, when_used="json")]
+# documented as what it is, an RFC 3339 time (a generated client parses it into a datetime)
+UtcTime = Annotated[datetime, PlainSerializer(iso_z, return_type=str, when_used="json"),
+                    WithJsonSchema({"type": "string", "format": "date-time"})]
 
 
 def _no_paths(text: str | None) -> str | None:

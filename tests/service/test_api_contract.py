@@ -59,6 +59,8 @@ def test_every_operation_documents_every_error_with_the_one_error_body(env):
                 assert entry["description"] not in ("Additional Response", "Validation Error"), (where, status)
         seen += 1
     assert seen >= 30
+    ids = [op["operationId"] for _, _, op in _operations(doc)]
+    assert len(set(ids)) == len(ids) and "list_breakers" in ids  # a generated client's function names
     health = doc["paths"]["/healthz"]["get"]
     assert {} in health["security"]  # public; a key is optional (it adds details)
     metrics = doc["paths"]["/metrics"]["get"]["responses"]
@@ -106,3 +108,35 @@ def test_options_and_405_list_every_method_of_the_path(env):
     assert r.status_code == 405 and {m.strip() for m in r.headers["allow"].split(",")} == {"GET", "HEAD", "PUT"}
     assert "PATCH" in ErrorBody.model_validate(r.json()).detail
     assert env.client.options("/api/v1/no-such-thing").status_code == 404
+
+
+def test_the_recovery_command_the_demo_prints_makes_a_working_admin_key(tmp_path, monkeypatch):
+    import os
+    import shlex
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from service.api.commands import _recovery
+    from service.storage import crud
+    from service.storage.db import make_engine, session_factory, upgrade
+
+    monkeypatch.delenv("HVCB_DEMO_DATABASE_URL", raising=False)
+    data = tmp_path / "demo"
+    data.mkdir()
+    upgrade(f"sqlite:///{data / 'hvcb.sqlite3'}")
+    words = shlex.split(_recovery(data))
+    env_vars = dict(w.split("=", 1) for w in words if "=" in w and not w.startswith("-"))
+    args = words[len(env_vars):]
+    assert args[:2] == ["hvcb", "key"] and env_vars == {"HVCB_DATA_DIR": str(data)}
+    root = Path(__file__).resolve().parents[2]
+    run = subprocess.run([sys.executable, "-m", "service.cli", *args[1:]], capture_output=True, text=True,
+                         timeout=120, cwd=root, env={**os.environ, **env_vars, "PYTHONPATH": str(root)})
+    assert run.returncode == 0, run.stderr
+    engine = make_engine(f"sqlite:///{data / 'hvcb.sqlite3'}")
+    try:
+        with session_factory(engine)() as s:
+            row = crud.find_api_key(s, key=run.stdout.strip())
+            assert row is not None and row.role == "admin"
+    finally:
+        engine.dispose()
