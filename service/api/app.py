@@ -164,6 +164,9 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
     from .routes_diagnoses import router as diagnoses_router  # breaker-level diagnoses (issue 20)
 
     app.include_router(diagnoses_router)
+    from .routes_prognosis import router as prognosis_router  # issue 31
+
+    app.include_router(prognosis_router)
 
     from service.web import mount_web  # the engineers' web page at /
 
