@@ -95,12 +95,13 @@ def store_prognoses(session, *, breaker_id: int, settings) -> list:
     return progs
 
 
-def soonest_by_breaker(session) -> dict[int, tuple[str, float | None]]:
-    """breaker id -> (parameter, median operations to its limit) of the soonest stored crossing;
-    None for a breaker whose limits expect no crossing within the horizon."""
-    out: dict[int, tuple[str, float | None]] = {}
-    for r in session.scalars(select(PrognosisRow)):
+def soonest_by_breaker(session) -> dict[int, tuple[str, float | None, datetime]]:
+    """breaker id -> (parameter, median operations to its limit, updated at) of the soonest
+    stored crossing; the median is None when no limit is expected to be crossed within the
+    horizon. A breaker without limits has no entry (SCADA points and the fleet's order)."""
+    out: dict[int, tuple[str, float | None, datetime]] = {}
+    for r in session.scalars(select(PrognosisRow).order_by(PrognosisRow.breaker_id, PrognosisRow.parameter)):
         have = out.get(r.breaker_id)
         if have is None or (r.median_operations is not None and (have[1] is None or r.median_operations < have[1])):
-            out[r.breaker_id] = (r.parameter, r.median_operations)
+            out[r.breaker_id] = (r.parameter, r.median_operations, r.updated_at)
     return out

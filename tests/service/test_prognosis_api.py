@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import pytest
 from sqlalchemy import select
 
 from service.storage.models import BreakerRow, PrognosisRow
@@ -18,7 +19,7 @@ def test_leaking_breaker_gets_a_prognosis_with_quantiles(env):
     assert body["message"] == ""
     do = next(p for p in body["parameters"] if p["parameter"] == "DO")
     assert do["status"] == "ok" and do["direction"] == "falling" and do["basis"] == "change point"
-    assert do["limit"] == __import__("pytest").approx(0.75 * do["baseline"])
+    assert do["limit"] == pytest.approx(0.75 * do["baseline"])
     q = do["operations_to_limit"]
     assert 0 < q["p05"] < q["median"] < q["p95"]
     assert 3 <= q["median"] <= 14  # the truth is about 8 more openings
@@ -30,8 +31,23 @@ def test_leaking_breaker_gets_a_prognosis_with_quantiles(env):
     # ... and the worker stored the same median as the fits landed
     with env.Session() as s:
         rows = {r.parameter: r for r in s.scalars(select(PrognosisRow))}
-    assert rows["DO"].median_operations == __import__("pytest").approx(q["median"], abs=0.1)
+    assert rows["DO"].median_operations == pytest.approx(q["median"], abs=0.1)
     assert rows["BO"].median_operations is None
+    # the SCADA point (REST), Prometheus and the IEC 61850 view carry the soonest median
+    env.client.app.state.scada_cache = None
+    points = {p["point"]: p["value"] for p in env.client.get("/api/v1/scada/points", headers=env.h("reader")).json()}
+    tag = next(k for k in points if k.endswith(".prognosis.operations_to_limit")).split(".")[0]
+    assert points[f"{tag}.prognosis.operations_to_limit"] == pytest.approx(q["median"], abs=0.1)
+    metrics = env.client.get("/metrics", headers=env.h("reader")).text
+    line = next(x for x in metrics.splitlines() if x.startswith("hvcb_operations_to_limit{"))
+    assert 'parameter="DO"' in line and float(line.split()[-1]) == pytest.approx(q["median"], abs=0.1)
+    from service.iec61850.snapshot import OperatingTimeCache, breaker_views
+    from service.storage.models import utcnow
+
+    with env.Session() as s:
+        view = breaker_views(s, now=utcnow(), daq_timeout_s=60, drift_settings=env.settings.drift_settings,
+                             cache=OperatingTimeCache())[1]
+    assert view.soonest[0] == "DO" and view.soonest[1] == pytest.approx(q["median"], abs=0.1)
 
 
 def test_breaker_without_limits_is_told_how_to_add_them_and_unknown_is_404(env):
