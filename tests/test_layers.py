@@ -24,7 +24,7 @@ LAYERS: list[tuple[str, ...]] = [
     ("service.mechanics",),                                      # the paper's reduced physics
     ("drivers", "service.breaker_file", "service.breaker_travel", "service.breaker_limits",
      "service.acquisition"),  # captures, DAQs, breaker files
-    ("service.estimation", "service.storage", "service.alarms", "service.prototypes"),
+    ("service.estimation", "service.storage", "service.alarms", "service.prognosis", "service.prototypes"),
     ("service.diagnosis", "service.studies"),
     ("service.jobs", "service.workers", "service.refit", "service.agent", "service.iec61850",
      "service.settings"),

@@ -167,6 +167,9 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
     from .routes_diagnoses import router as diagnoses_router  # breaker-level diagnoses (issue 20)
 
     app.include_router(diagnoses_router)
+    from .routes_prognosis import router as prognosis_router  # issue 31
+
+    app.include_router(prognosis_router)
 
     from .routes_keys import router as keys_router
 

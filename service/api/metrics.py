@@ -38,6 +38,10 @@ class _DbCollector:
                                       .where(FitRow.status == "done")).one()
                 daq = session.execute(select(BreakerRow.name, DaqStatusRow).join(
                     DaqStatusRow, DaqStatusRow.breaker_id == BreakerRow.id)).all()
+                from service.jobs.prognosis import soonest_by_breaker
+
+                names = dict(session.execute(select(BreakerRow.id, BreakerRow.name)).all())
+                soonest = {names[i]: v for i, v in soonest_by_breaker(session).items() if i in names}
         except (OperationalError, DBAPIError):
             up.add_metric([], 0)
             yield up
@@ -71,6 +75,11 @@ class _DbCollector:
             daq_caps.add_metric([name], d.captures)
             conn.add_metric([name], 1 if d.connected else 0)
         yield from (dropped, crc, frames, daq_caps, conn)
+        ops = GaugeMetricFamily("hvcb_operations_to_limit", "median openings until the soonest maintenance "
+                                "limit (prognosis); +Inf: no crossing within the horizon", labels=["breaker", "parameter"])
+        for name, (parameter, median, _) in sorted(soonest.items()):
+            ops.add_metric([name, parameter], float("inf") if median is None else median)
+        yield ops
 
 
 class LocalMetrics:

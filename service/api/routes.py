@@ -375,6 +375,9 @@ def _scada_points(session, settings) -> list[s.ScadaPoint]:
     stale = timedelta(seconds=settings.stale_after_s)
     daq_timeout = timedelta(seconds=settings.daq_timeout_s)
     points: list[s.ScadaPoint] = []
+    from service.jobs.prognosis import soonest_by_breaker
+
+    soonest = soonest_by_breaker(session)
     for row in crud.list_breakers(session):
         d = daq.get(row.id)
         daq_down = d is not None and (not d.connected or d.last_seen is None or now - d.last_seen > daq_timeout)
@@ -397,6 +400,10 @@ def _scada_points(session, settings) -> list[s.ScadaPoint]:
                                            timestamp=ts, quality=quality))
         points.append(s.ScadaPoint(point=f"{row.tag}.alarm_level", value=float(level), unit="1", timestamp=now,
                                    quality="good"))
+        if row.id in soonest:  # median openings to the soonest limit; null: none within the horizon
+            _, median, at = soonest[row.id]
+            points.append(s.ScadaPoint(point=f"{row.tag}.prognosis.operations_to_limit", value=median, unit="1",
+                                       timestamp=at, quality="good"))
         if d is not None:
             points.append(s.ScadaPoint(point=f"{row.tag}.daq.connected", value=0.0 if daq_down else 1.0, unit="1",
                                        timestamp=d.last_seen, quality="good"))

@@ -150,6 +150,9 @@ def logical_device(tag: str, breaker: str, watched: Iterable[str]) -> LogicalDev
                                                                f"or alarm level)", HVCB_NS))
         objs.append(DataObject("SOPM1", f"{name}Alm", "SPS", f"{name} drift alarm at alarm level", HVCB_NS))
         members += [f"SOPM1.{name}Wrn", f"SOPM1.{name}Alm"]
+    objs.append(DataObject("SOPM1", "OpsToLim", "MV", "median openings until the soonest maintenance "
+                                                      "limit is crossed (prognosis); invalid: no limits, or "
+                                                      "no crossing within the horizon", HVCB_NS, "1"))
     members += ["SOPM1.Health", "LLN0.Health"]
     return LogicalDevice(inst=tag, breaker=breaker, objects=tuple(objs), dataset=tuple(members))
 
@@ -194,6 +197,9 @@ class BreakerView:
     alarms: Mapping[str, str] = field(default_factory=dict)            # parameter -> active level
     operating_time_levels: Mapping[str, str] = field(default_factory=dict)  # kind -> drift level
     daq_down: bool = False
+    # (parameter, median openings to its limit or None: no crossing within the horizon, time);
+    # None: no limits (service.jobs.prognosis.soonest_by_breaker)
+    soonest: tuple | None = None
 
 
 @dataclass(frozen=True)
@@ -262,6 +268,9 @@ def values(ld: LogicalDevice, view: BreakerView, *, now: datetime, stale_after_s
             drift_levels.append(level)
             active = level in ("warning", "alarm") if suffix == "Wrn" else level == "alarm"
             out[f"SOPM1.{o.name}"] = Value(active, GOOD, now)
+    soon = view.soonest
+    out["SOPM1.OpsToLim"] = (Value(float(soon[1]), GOOD, soon[2]) if soon is not None and soon[1] is not None
+                             else Value(None, INVALID, soon[2] if soon is not None else now))
     mech = _worst(drift_levels)
     out["SOPM1.Health"] = Value(HEALTH[mech], GOOD, now)
     out["LLN0.Health"] = Value(HEALTH[_worst((mech, tm_level))], GOOD, now)

@@ -77,7 +77,10 @@ class OperatingTimeCache:
 def breaker_views(session, *, now: datetime, daq_timeout_s: float, drift_settings,
                   cache: OperatingTimeCache) -> dict[int, BreakerView]:
     """A ``BreakerView`` per breaker id."""
+    from service.jobs.prognosis import soonest_by_breaker
+
     daq = {d.breaker_id: d for d in crud.daq_statuses(session)}
+    soonest = soonest_by_breaker(session)
     timeout = timedelta(seconds=daq_timeout_s)
     out = {}
     for b in crud.list_breakers(session):
@@ -93,7 +96,7 @@ def breaker_views(session, *, now: datetime, daq_timeout_s: float, drift_setting
             name=b.name, tag=b.tag, operations=int(n_ops or 0),
             last_kind=last[0] if last else None, last_operation_at=last[1] if last else None,
             fits={k: _fit_view(crud.latest_fit(session, breaker_id=b.id, kind=k)) for k in ("open", "close")},
-            alarms=alarms, daq_down=daq_down,
+            alarms=alarms, daq_down=daq_down, soonest=soonest.get(b.id),
             operating_time_levels={k: cache.level(session, breaker=b, kind=k, settings=drift_settings)
                                    for k in ("open", "close")})
     return out

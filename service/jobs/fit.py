@@ -241,6 +241,10 @@ def update_drift(session, *, breaker_id: int, options: JobOptions | None = None,
             all_events.extend(events)
         _save_state(session, row, breaker_id, state)
     session.flush()
+    from service.jobs.prognosis import store_prognoses
+
+    store_prognoses(session, breaker_id=breaker_id, settings=settings)  # as each fit lands
+    session.flush()
     return all_events
 
 

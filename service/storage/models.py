@@ -222,6 +222,19 @@ class DriftStateRow(Base):
     updated_at: Mapped[datetime] = mapped_column(default=utcnow)
 
 
+class PrognosisRow(Base):
+    """The latest prognosis of one limited parameter of one breaker (service.prognosis), updated
+    by the worker as each fit lands. ``median_operations`` is the median operations to the
+    limit, None when no crossing is expected within the horizon (for SCADA and the fleet)."""
+
+    __tablename__ = "prognoses"
+    breaker_id: Mapped[int] = mapped_column(ForeignKey("breakers.id", ondelete="CASCADE"), primary_key=True)
+    parameter: Mapped[str] = mapped_column(String(16), primary_key=True)
+    median_operations: Mapped[float | None] = mapped_column(Float)
+    result: Mapped[dict] = mapped_column(default=dict)
+    updated_at: Mapped[datetime] = mapped_column(default=utcnow)
+
+
 class ApiKeyRow(Base):
     """An API key: only its SHA-256 is stored (keys are 256-bit random, so a fast hash is enough)."""
 

@@ -34,7 +34,8 @@ def test_reference_breaker_is_hvcbQ1_with_standard_nodes_and_counter():
 def test_fitted_parameters_and_drift_alarms_are_declared_hvcb_extensions():
     dev = ld()
     ext = [o for o in dev.objects if o.namespace]
-    assert {o.name for o in ext} == {"AO", "BO", "DO", "EO", "AC", "BC", "CC", "DOWrn", "DOAlm", "BOWrn", "BOAlm"}
+    assert {o.name for o in ext} == {"AO", "BO", "DO", "EO", "AC", "BC", "CC", "DOWrn", "DOAlm", "BOWrn", "BOAlm",
+                                   "OpsToLim"}
     assert all(o.ln == "SOPM1" and o.namespace == pm.HVCB_NS for o in ext)
     refs = {p.reference: p for p in pm.points(dev)}
     for o in ext:
@@ -78,6 +79,11 @@ def test_values_follow_fits_alarms_and_quality():
     empty = pm.values(ld(), pm.BreakerView(name="b", tag="Q1"), now=NOW, stale_after_s=86400)
     assert empty["SOPM1.AO"].quality == pm.INVALID and empty["XCBR1.Pos"].quality == pm.INVALID
     assert empty["XCBR1.OpCnt"].value == 0
+    assert empty["SOPM1.OpsToLim"].quality == pm.INVALID  # no limits
+    soon = pm.values(ld(), _view(soonest=("DO", 42.0, NOW)), now=NOW, stale_after_s=86400)["SOPM1.OpsToLim"]
+    assert (soon.value, soon.quality, soon.t) == (42.0, pm.GOOD, NOW)
+    never = pm.values(ld(), _view(soonest=("DO", None, NOW)), now=NOW, stale_after_s=86400)["SOPM1.OpsToLim"]
+    assert never.value is None and never.quality == pm.INVALID  # no crossing within the horizon
     every = {f"{o.ln}.{o.name}" for o in ld().objects if o.cdc not in ("LPL", "DPL")}
     assert set(v) == every
 

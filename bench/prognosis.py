@@ -1,0 +1,207 @@
+"""Calibration of the prognosis, by simulation through the real code path.
+
+    nice .venv/bin/python bench/prognosis.py [--histories 10000] [--workers 2] [--seed 2031]
+
+Each history is one breaker's DO or BO fits, made with the noise model of bench/alarm_rates.py
+(run-to-run sd 1-2 %, fit CI half-width 0.8-1.2 %, 1 % gross outliers of 5-30 %, one operation
+a day). Every fit goes through ``service.alarms.update`` (the fit job's detector) and the
+prognosis is ``service.prognosis.prognose`` on that state and the fits since the reset, as the
+worker computes it. Scenarios (onset after 60-250 healthy operations):
+
+- linear_leak: DO falls 0.05-1 %/op; limit DO min_change -0.25
+- accelerating_leak: DO's loss rate grows linearly, doubling by the limit: 0.05-1 %/op at onset
+- spring_fatigue: BO falls 0.02-0.2 %/op; limit BO min_change -0.10
+- step_ramp: DO steps down 3-8 %, then falls 0.1-0.5 %/op; limit -0.25
+- seasonal_given / seasonal_not_given: linear_leak at 0.05-0.5 %/op with the seasonal
+  temperature (-25..+40 C, DO -0.4 %/K), given to the detector or not
+- healthy: no drift, 300-1000 operations, seasonal temperature given
+
+For each degrading history the prognosis is made when the true level is halfway (and three
+quarters of the way) from the onset to the limit. It reports the coverage of the 5-95 % interval
+of operations-to-limit (target 0.88-0.92), the median relative error of the median at halfway
+(target <= 20 %), and for healthy breakers the share predicted to cross within 10 years
+(target <= 1 %). Writes bench/results/prognosis.json.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor
+from datetime import timedelta
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from alarm_rates import NOMINAL, OUTLIER_P, T0, TEMP_SLOPE, T_REF, Z95, temperature  # noqa: E402
+
+from service.alarms import DriftSettings, DriftState, FitObservation, update  # noqa: E402
+from service.breaker_limits import ParameterLimit  # noqa: E402
+from service.prognosis import prognose  # noqa: E402
+
+RESULTS = Path(__file__).resolve().parent / "results" / "prognosis.json"
+LIMIT = {"DO": ParameterLimit(min_change=-0.25), "BO": ParameterLimit(min_change=-0.10)}
+SCENARIOS = ("linear_leak", "accelerating_leak", "spring_fatigue", "step_ramp", "seasonal_given",
+             "seasonal_not_given", "healthy")
+FRACTIONS = (0.5, 0.75)  # of the way from onset to limit at which the prognosis is made
+
+
+def path(scenario: str, rng, n_ops: int, onset: int) -> tuple[str, np.ndarray, dict]:
+    """(parameter, relative true factor of operations 1..n_ops, the draw)."""
+    d = np.maximum(0, np.arange(1, n_ops + 1) - onset).astype(float)
+    if scenario in ("linear_leak", "seasonal_given", "seasonal_not_given"):
+        r = rng.uniform(0.0005, 0.01 if scenario == "linear_leak" else 0.005)
+        return "DO", 1.0 - r * d, {"rate": r}
+    if scenario == "accelerating_leak":
+        r = rng.uniform(0.0005, 0.01)
+        horizon = 0.25 / r
+        return "DO", 1.0 - r * d * (1.0 + d / (2.0 * horizon)), {"rate": r}
+    if scenario == "spring_fatigue":
+        r = rng.uniform(0.0002, 0.002)
+        return "BO", 1.0 - r * d, {"rate": r}
+    if scenario == "step_ramp":
+        step, r = rng.uniform(0.03, 0.08), rng.uniform(0.001, 0.005)
+        return "DO", 1.0 - np.where(d > 0, step, 0.0) - r * d, {"rate": r, "step": step}
+    return rng.choice(["DO", "BO"]), np.ones(n_ops), {}
+
+
+def observations(rng, parameter: str, factor: np.ndarray, *, seasonal: bool, give: bool):
+    """Fits of operations 1..n (bench/alarm_rates.py's noise model) and the true temperatures."""
+    n_ops, p = factor.size, NOMINAL[parameter]
+    i = np.arange(1, n_ops + 1)
+    hour = rng.uniform(0, 24, n_ops)
+    temp = temperature(rng.uniform(0, 365) + i, hour, rng)
+    f = factor * (1.0 + TEMP_SLOPE[parameter] * (temp - T_REF)) if seasonal else factor
+    sd_run = rng.uniform(0.01, 0.02)
+    half = rng.uniform(0.008, 0.012, n_ops) * p
+    x = p * f * (1.0 + sd_run * rng.standard_normal(n_ops)) + half / Z95 * rng.standard_normal(n_ops)
+    out = rng.random(n_ops) < OUTLIER_P
+    x[out] *= 1.0 + rng.choice([-1.0, 1.0], out.sum()) * rng.uniform(0.05, 0.30, out.sum())
+    obs = [FitObservation(operation_id=int(op), time=T0 + timedelta(days=int(op), hours=float(h)),
+                          value=float(v), ci95=(float(v - hw), float(v + hw)),
+                          temperature=float(t) if give else None)
+           for op, h, v, hw, t in zip(i, hour, x, half, temp)]
+    return obs, temp
+
+
+def crossing(level: np.ndarray, bound: float, direction: str) -> int | None:
+    """First operation (1-based) whose true level is past ``bound``."""
+    past = level <= bound if direction == "falling" else level >= bound
+    idx = np.flatnonzero(past)
+    return int(idx[0]) + 1 if idx.size else None
+
+
+def one(scenario: str, seed: list[int], settings: DriftSettings) -> list[dict]:
+    rng = np.random.default_rng(seed)
+    seasonal = scenario in ("seasonal_given", "seasonal_not_given", "healthy")
+    give = scenario != "seasonal_not_given"
+    onset = int(rng.integers(60, 251))
+    if scenario == "healthy":
+        n_ops = int(rng.integers(300, 1001))
+        parameter, factor, draw = path(scenario, rng, n_ops, onset)
+        stops = [n_ops]
+    else:
+        parameter, true_factor, draw = path(scenario, rng, 4000, onset)
+        c = crossing(true_factor, 1.0 + LIMIT[parameter].min_change, "falling")
+        stops = [onset + max(1, round(fr * (c - onset))) for fr in FRACTIONS]
+        factor = true_factor[:stops[-1]]
+    obs, temp = observations(rng, parameter, factor, seasonal=seasonal, give=give)
+    state, rows, k = DriftState.new(parameter, settings), [], 0
+    for j, o in enumerate(obs, start=1):
+        state, _ = update(state, o, settings)
+        if j != stops[k]:
+            continue
+        t0 = time.perf_counter()
+        prog = prognose(state, obs[:j], LIMIT[parameter])
+        cost = time.perf_counter() - t0
+        row = {"scenario": scenario, "parameter": parameter, "at": j, "fraction": None,
+               "status": prog.status, "alarm": state.level, "basis": prog.basis,
+               "cost_ms": cost * 1e3, **draw}
+        q = prog.operations_to_limit
+        row["pred"] = [None, None, None] if q is None else [q.p05, q.median, q.p95]
+        if scenario != "healthy" and prog.limit is not None:
+            # The truth: the noise-free level, at the temperature the values are compensated to.
+            m = state.model
+            t_ref = m.t_mean if m.compensated else (float(np.mean(temp[:settings.baseline_n])) if seasonal else T_REF)
+            level = NOMINAL[parameter] * true_factor
+            if seasonal:
+                level = level * (1.0 + TEMP_SLOPE[parameter] * (t_ref - T_REF))
+            c = crossing(level, prog.limit, prog.direction)
+            row.update(fraction=FRACTIONS[k], truth=None if c is None else c - j)
+        rows.append(row)
+        k += 1
+        if k == len(stops):
+            break
+    return rows
+
+
+def _job(args):
+    scenario, seeds, settings_dict = args
+    settings = DriftSettings.from_mapping(settings_dict)
+    return [r for s in seeds for r in one(scenario, s, settings)]
+
+
+def summarise(rows: list[dict]) -> dict:
+    def covered(r):
+        lo, _, hi = r["pred"]
+        lo, hi = (math.inf if lo is None else lo), (math.inf if hi is None else hi)
+        return r["truth"] is not None and lo <= r["truth"] <= hi
+
+    def stats_of(sel):
+        if not sel:
+            return None
+        half = [r for r in sel if r["fraction"] == 0.5]
+        errs = [abs((r["pred"][1] if r["pred"][1] is not None else math.inf) - r["truth"]) / r["truth"]
+                for r in half if r["truth"]]
+        below = sum(1 for r in sel if r["truth"] is not None and r["pred"][0] is not None and r["truth"] < r["pred"][0])
+        return {"predictions": len(sel), "coverage_90": round(float(np.mean([covered(r) for r in sel])), 4),
+                "coverage_90_at_half": round(float(np.mean([covered(r) for r in half])), 4) if half else None,
+                "truth_below_p05": round(below / len(sel), 4),
+                "truth_above_p95": round(1 - below / len(sel) - float(np.mean([covered(r) for r in sel])), 4),
+                "median_rel_error_at_half": round(float(np.median(errs)), 4) if errs else None,
+                "with_alarm": round(float(np.mean([r["alarm"] != "none" for r in sel])), 4)}
+
+    degrading = [r for r in rows if r["scenario"] != "healthy"]
+    healthy = [r for r in rows if r["scenario"] == "healthy"]
+    per = {s: stats_of([r for r in degrading if r["scenario"] == s]) for s in SCENARIOS if s != "healthy"}
+    costs = [r["cost_ms"] for r in rows]
+    return {"overall": stats_of(degrading), "per_scenario": per,
+            "healthy": {"breakers": len(healthy),
+                        "crossing_within_10_years": round(float(np.mean([r["pred"][1] is not None for r in healthy])), 4)
+                        if healthy else None},
+            "cost_ms_per_prognosis": {"median": round(float(np.median(costs)), 3),
+                                      "p99": round(float(np.percentile(costs, 99)), 3)}}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--histories", type=int, default=10_000)
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--seed", type=int, default=2031)
+    ap.add_argument("--out", type=Path, default=RESULTS)
+    a = ap.parse_args(argv)
+    settings = DriftSettings()
+    per = a.histories // len(SCENARIOS)
+    jobs = [(s, [[a.seed, k, b] for b in range(lo, min(per, lo + 20))], settings.to_dict())
+            for k, s in enumerate(SCENARIOS) for lo in range(0, per, 20)]
+    t0 = time.perf_counter()
+    with ProcessPoolExecutor(a.workers) as ex:
+        rows = [r for chunk in ex.map(_job, jobs) for r in chunk]
+    result = {"histories": per * len(SCENARIOS), "seed": a.seed, "workers": a.workers,
+              "runtime_s": round(time.perf_counter() - t0, 1), **summarise(rows),
+              "targets": {"coverage_90": [0.88, 0.92], "median_rel_error_at_half": 0.20,
+                          "healthy_crossing_within_10_years": 0.01}}
+    a.out.parent.mkdir(parents=True, exist_ok=True)
+    a.out.write_text(json.dumps(result, indent=2) + "\n")
+    print(json.dumps(result, indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

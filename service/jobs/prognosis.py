@@ -1,0 +1,107 @@
+"""The prognosis of a breaker's limited parameters, from the database: the I/O side of
+service.prognosis. The worker stores it as each fit lands (``store_prognoses``, called from
+``service.jobs.fit.update_drift``); the API computes it fresh (``breaker_prognoses``)."""
+
+from __future__ import annotations
+
+from dataclasses import asdict
+from datetime import datetime
+
+from sqlalchemy import select
+
+from service.storage import crud
+from service.storage.crud_alarms import operation_temperatures
+from service.storage.models import BreakerRow, DriftStateRow, PrognosisRow, utcnow
+
+HOW_TO_ADD = ('add a [limits] table to the breaker file, e.g. DO = { min_change = -0.25 } '
+              '(docs/breaker-file.md, "Maintenance limits")')
+
+
+def limits_of(breaker: BreakerRow):
+    """The breaker file's [limits] (an empty table when it has none or the file fails to parse)."""
+    from service.breaker_file import BreakerFileError, parse_breaker_text
+    from service.breaker_limits import Limits
+
+    try:
+        return parse_breaker_text(breaker.breaker_file, source=f"{breaker.name} (stored)").limits
+    except BreakerFileError:
+        return Limits()
+
+
+def _history(session, breaker: BreakerRow, parameter: str):
+    """The parameter's good fits since the baseline reset: what the detector was fed."""
+    from service.alarms import FitObservation
+
+    rows = crud.good_parameter_history(session, breaker_id=breaker.id, name=parameter,
+                                       since=breaker.baseline_reset_at)
+    temps = operation_temperatures(session, {r.operation_id for r in rows})
+    return [FitObservation(operation_id=r.operation_id, time=r.occurred_at, value=r.value,
+                           ci95=(r.ci_low, r.ci_high) if r.ci_low is not None and r.ci_high is not None else None,
+                           temperature=temps.get(r.operation_id))
+            for r in rows]
+
+
+def breaker_prognoses(session, *, breaker: BreakerRow, settings, horizon_years: float = 10.0) -> list:
+    """``service.prognosis.Prognosis`` of each limited parameter, soonest median first."""
+    from service.alarms import DriftState
+    from service.prognosis import Prognosis, prognose
+
+    out = []
+    for parameter, limit in limits_of(breaker).items():
+        if parameter not in settings.watched:
+            out.append(Prognosis(parameter, None, None, limit.describe(), status="no trend",
+                                 reason=f"{parameter} is not watched by the drift detector, which learns "
+                                        "its compensated baseline ([alarms] watched)"))
+            continue
+        row = session.get(DriftStateRow, (breaker.id, parameter))
+        state = DriftState.from_dict(row.state) if row is not None and row.state else DriftState.new(parameter, settings)
+        out.append(prognose(state, _history(session, breaker, parameter), limit, horizon_years=horizon_years))
+    return sorted(out, key=soonest_key)
+
+
+def soonest_key(p) -> tuple:
+    """Sort key: a crossing expected soonest first, then no crossing, then no trend."""
+    q = p.operations_to_limit
+    return (0, q.median) if q is not None else ((1, 0.0) if p.status == "ok" else (2, 0.0))
+
+
+def as_json(p) -> dict:
+    """A prognosis as JSON-able dict (datetimes as ISO text)."""
+    def conv(v):
+        if isinstance(v, datetime):
+            return v.isoformat()
+        if isinstance(v, dict):
+            return {k: conv(x) for k, x in v.items()}
+        if isinstance(v, list):
+            return [conv(x) for x in v]
+        return v
+    return conv(asdict(p))
+
+
+def store_prognoses(session, *, breaker_id: int, settings) -> list:
+    """Recompute and store the breaker's prognoses (the worker's hook after the drift update)."""
+    breaker = session.get(BreakerRow, breaker_id)
+    progs = breaker_prognoses(session, breaker=breaker, settings=settings)
+    now = utcnow()
+    stored = {r.parameter: r for r in session.scalars(select(PrognosisRow).where(PrognosisRow.breaker_id == breaker_id))}
+    for p in progs:
+        row = stored.pop(p.parameter, None) or PrognosisRow(breaker_id=breaker_id, parameter=p.parameter)
+        q = p.operations_to_limit
+        row.median_operations = float(q.median) if q is not None else None
+        row.result, row.updated_at = as_json(p), now
+        session.add(row)
+    for row in stored.values():  # a limit that was removed from the breaker file
+        session.delete(row)
+    return progs
+
+
+def soonest_by_breaker(session) -> dict[int, tuple[str, float | None, datetime]]:
+    """breaker id -> (parameter, median operations to its limit, updated at) of the soonest
+    stored crossing; the median is None when no limit is expected to be crossed within the
+    horizon. A breaker without limits has no entry (SCADA points and the fleet's order)."""
+    out: dict[int, tuple[str, float | None, datetime]] = {}
+    for r in session.scalars(select(PrognosisRow).order_by(PrognosisRow.breaker_id, PrognosisRow.parameter)):
+        have = out.get(r.breaker_id)
+        if have is None or (r.median_operations is not None and (have[1] is None or r.median_operations < have[1])):
+            out[r.breaker_id] = (r.parameter, r.median_operations, r.updated_at)
+    return out

@@ -1,0 +1,68 @@
+"""The prognosis over the REST API, stored by the worker's hook as each fit lands."""
+
+from __future__ import annotations
+
+import pytest
+from sqlalchemy import select
+
+from service.storage.models import BreakerRow, PrognosisRow
+from test_alarm_lifecycle import _leak
+
+URL = "/api/v1/breakers/{}/prognosis"
+
+
+def test_leaking_breaker_gets_a_prognosis_with_quantiles(env):
+    _leak(env, n=32, start=25)  # DO falls 2 %/op from op 25; 25 % below baseline near op 39
+    r = env.client.get(URL.format("reference-252kV"), headers=env.h("reader"))
+    assert r.status_code == 200, r.text
+    body = r.json()
+    assert body["message"] == ""
+    do = next(p for p in body["parameters"] if p["parameter"] == "DO")
+    assert do["status"] == "ok" and do["direction"] == "falling" and do["basis"] == "change point"
+    assert do["limit"] == pytest.approx(0.75 * do["baseline"])
+    q = do["operations_to_limit"]
+    assert 0 < q["p05"] < q["median"] < q["p95"]
+    assert 3 <= q["median"] <= 14  # the truth is about 8 more openings
+    assert do["date_to_limit"] is None and do["rate_per_day"] is None  # a minute of operations: no rate
+    assert len(do["fan"]["median"]) == len(do["fan"]["operations"]) > 10
+    # BO is flat: its median crossing is beyond the horizon
+    bo = next(p for p in body["parameters"] if p["parameter"] == "BO")
+    assert bo["operations_to_limit"] is None and bo["status"] == "ok"
+    # ... and the worker stored the same median as the fits landed
+    with env.Session() as s:
+        rows = {r.parameter: r for r in s.scalars(select(PrognosisRow))}
+    assert rows["DO"].median_operations == pytest.approx(q["median"], abs=0.1)
+    assert rows["BO"].median_operations is None
+    # the SCADA point (REST), Prometheus and the IEC 61850 view carry the soonest median
+    env.client.app.state.scada_cache = None
+    points = {p["point"]: p["value"] for p in env.client.get("/api/v1/scada/points", headers=env.h("reader")).json()}
+    tag = next(k for k in points if k.endswith(".prognosis.operations_to_limit")).split(".")[0]
+    assert points[f"{tag}.prognosis.operations_to_limit"] == pytest.approx(q["median"], abs=0.1)
+    metrics = env.client.get("/metrics", headers=env.h("reader")).text
+    line = next(x for x in metrics.splitlines() if x.startswith("hvcb_operations_to_limit{"))
+    assert 'parameter="DO"' in line and float(line.split()[-1]) == pytest.approx(q["median"], abs=0.1)
+    from service.iec61850.snapshot import OperatingTimeCache, breaker_views
+    from service.storage.models import utcnow
+
+    with env.Session() as s:
+        view = breaker_views(s, now=utcnow(), daq_timeout_s=60, drift_settings=env.settings.drift_settings,
+                             cache=OperatingTimeCache())[1]
+    assert view.soonest[0] == "DO" and view.soonest[1] == pytest.approx(q["median"], abs=0.1)
+
+
+def test_breaker_without_limits_is_told_how_to_add_them_and_unknown_is_404(env):
+    with env.Session() as s, s.begin():
+        b = s.scalar(select(BreakerRow))
+        b.breaker_file = b.breaker_file.split("[limits]")[0]
+    r = env.client.get(URL.format(1), headers=env.h("reader"))
+    assert r.status_code == 200 and r.json()["parameters"] == []
+    assert "[limits]" in r.json()["message"]
+    r = env.client.get(URL.format("nope"), headers=env.h("reader"))
+    assert r.status_code == 404
+    assert env.client.get(URL.format(1)).status_code == 401
+
+
+def test_prognosis_is_in_the_openapi_with_its_errors(env):
+    spec = env.client.get("/openapi.json").json()
+    op = spec["paths"]["/api/v1/breakers/{name}/prognosis"]["get"]
+    assert {"200", "401", "403", "404"} <= set(op["responses"])
