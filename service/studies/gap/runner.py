@@ -103,10 +103,12 @@ def write_jobs(out: Path, p: str, seed: int, sizes: dict) -> list:
 
 
 def run_gap_study(out_dir: Path, *, seed: int = DEFAULT_SEED, quick: bool = False, workers: int = 2,
-                  prototypes=None, sizes=None, ship_calibration: bool = False) -> dict:
+                  prototypes=None, sizes=None, ship_calibration: bool = False, with_rows=None) -> dict:
     """Write the groups of each prototype, diagnose them and run the oracle (a pool of
     ``workers``), score; ``ship_calibration``: also write the map fitted on every development
-    prototype run to ``service/diagnosis/calibration.json``."""
+    prototype run to ``service/diagnosis/calibration.json``. ``with_rows``: the
+    ``gap_groups.json`` of an earlier run whose rows are scored alongside (a held-out prototype
+    run alone is then calibrated by the development prototypes' map)."""
     from ..common import pool_map
     from .report import summarise
 
@@ -117,7 +119,11 @@ def run_gap_study(out_dir: Path, *, seed: int = DEFAULT_SEED, quick: bool = Fals
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     t0 = time.perf_counter()
     rows, result = [], None
-    for p in protos:
+    if with_rows is not None:
+        earlier = json.loads(Path(with_rows).read_text())
+        rows = [r for r in earlier["rows"] if r["prototype"] not in protos]
+        protos = [p for p in earlier["prototypes"] if p not in protos] + protos
+    for p in [q for q in protos if not any(r["prototype"] == q for r in rows)]:
         rows += pool_map(diagnose_group, write_jobs(out, p, seed, sizes), max(1, int(workers)))
         meta = {"seed": seed, "quick": quick, "sizes": sizes, "prototypes": protos, "workers": workers,
                 "wall_s": time.perf_counter() - t0, "complete": p == protos[-1]}
