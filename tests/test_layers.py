@@ -145,3 +145,20 @@ def test_no_import_cycle_between_packages():
                                              ("drivers.comtrade.reader", "drivers"), ("numpy", None)])
 def test_package_of(module, expected):
     assert package_of(module) == expected
+
+
+# The prototypes are test instruments (issue 29): production code must not depend on them, or
+# editing a generator would silently change the model it is evaluated with. Only the studies and
+# the demo's synthetic histories run them.
+PROTOTYPE_USERS = ("service.prototypes", "service.studies", "service.api.demo")
+
+
+def test_production_code_never_imports_the_prototypes():
+    bad = []
+    for path in sorted((ROOT / "service").rglob("*.py")):
+        module = module_name(path)
+        if any(module == u or module.startswith(u + ".") for u in PROTOTYPE_USERS):
+            continue
+        bad += [f"{path.relative_to(ROOT)}:{line} imports {target}" for target, line in imports_of(path)
+                if target == "service.prototypes" or target.startswith("service.prototypes.")]
+    assert not bad, "production code imports a prototype (a test instrument):\n" + "\n".join(bad)

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..prototypes.a import REALISTIC, shape_defaults
+from ..mechanics.effects import REFERENCE_STRENGTHS as REALISTIC, shape_defaults
 from .data import BLOCK, STATE
 from .evidence import Evidence
 from .hypotheses import Fits, n_params, signature

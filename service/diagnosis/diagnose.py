@@ -14,7 +14,7 @@ from __future__ import annotations
 import time
 
 from ..mechanics.breaker import Breaker
-from ..prototypes.a import EFFECT_NAMES
+from ..mechanics.effects import EFFECT_NAMES
 from .decision import decide
 from .errors import DiagnosisError
 from .evidence import evidence

@@ -28,8 +28,8 @@ import numpy as np
 from scipy.interpolate import BSpline
 from scipy.optimize import least_squares
 
-from ..prototypes.a import OPERATIONS, REALISTIC, SHAPES, SIGNED, shape_bounds, shape_defaults
-from ..prototypes.a.effects import FIT_UPPER
+from ..mechanics.effects import EFFECT_NAMES, OPERATIONS, PHYSICAL_UPPER as FIT_UPPER, REFERENCE_STRENGTHS as REALISTIC
+from ..mechanics.effects import SHAPES, SIGNED, shape_bounds, shape_defaults
 from .data import STATE, model_curve
 from .windows import Windows, linearise
 
@@ -329,7 +329,6 @@ def fit_all(windows: Windows, catalogue) -> "Fits":
 
 
 def catalogue_for(operation: str, effects=None):
-    from ..prototypes.a import EFFECT_NAMES
     return [e for e in (effects or EFFECT_NAMES) if operation in OPERATIONS.get(e, ())]
 
 

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..prototypes.a import OPERATIONS
+from ..mechanics.effects import OPERATIONS
 from .data import STATE, WindowData
 from .hypotheses import Fits, signature
 from .windows import linearise

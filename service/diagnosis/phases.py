@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..prototypes.a.contact_wipe import TOUCH_FRACTION
+from ..mechanics.effects.contact_wipe import TOUCH_FRACTION
 
 OPEN_PHASES = ("acceleration", "buffer_engagement", "buffer_stroke", "approach")
 CLOSE_PHASES = ("free_run", "cam_rise", "contact_touch", "end")

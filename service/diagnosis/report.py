@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..mechanics.effects import SHAPES
 from .data import BLOCK, STATE, model_curve
 from .decision import Decision
 from .evidence import Evidence
@@ -72,7 +73,6 @@ def build(fits: Fits, ev: Evidence, dec: Decision, next_meas: list, holdout, run
     named = []
     if chosen.effects and dec.status == "named":
         for e, s, sh in chosen.as_effects():
-            from ..prototypes.a import SHAPES
             named.append({"effect": e, "strength": s, "shape": {n[0]: float(v) for n, v in zip(SHAPES[e], sh)},
                           "mild": e in dec.mild})
     probs = dict(sorted(ev.probabilities.items(), key=lambda kv: -kv[1]))

@@ -1,6 +1,9 @@
 """Stage 1 — the captures' data: per capture the valid window (block means), its noise floor,
 the reduced model's polished state, the whitened residual and the state Jacobian.
 
+State: each capture's reduced parameters plus CO and τ (data.STATE), and the unit's α0 for an
+opening (``with_unit_alpha0``): the complete nuisance state of issue 29.
+
 Noise: per capture, σ_i is the fitter's pre-trigger standard deviation of the travel (the
 sensor at rest before the latch releases, ~2500 samples: its relative standard error is ~1.4 %).
 A block mean of c samples then has sd σ_i/√c; every residual below is divided by it, so a
@@ -85,16 +88,50 @@ def prepare(captures, breaker: Breaker, operation: str, *, fitter=None, seed: in
             name = cap.source or "capture"
             raise DiagnosisError(msg if msg.startswith(name) else f"{name}: {msg}") from None
     breaker = with_estimated_structure(breaker, [fr for _, fr in fits])
-    out = []
+    design = breaker.design_parameters()
+    datas, starts = [], []
     for cap, fr in fits:
         data = window_data(cap, fr, breaker, operation)
         if data.t.size < 20:
             raise DiagnosisError(f"{data.source}: the valid window holds only {data.t.size} blocks "
                                  f"of {16} samples: too short to diagnose")
-        x0 = np.array([fr.parameters[k] for k in STATE[operation]] + [fr.onset_delay_s])
+        datas.append(data)
+        starts.append(np.array([fr.parameters.get(k, design[k]) for k in STATE[operation]] + [fr.onset_delay_s]))
+    if operation == "open":
+        breaker = with_unit_alpha0(breaker, datas, starts)
+    out = []
+    for data, x0 in zip(datas, starts):
         x = baseline(x0, data, breaker, operation)
         out.append(linearise(x, data, breaker, operation))
     return Windows(operation, breaker, out)
+
+
+ALPHA0_SPAN = 0.15   # ±15 % about the breaker file's α0: a unit's buffer setting, well past ±3 % tolerances
+
+
+def with_unit_alpha0(breaker: Breaker, datas, starts) -> Breaker:
+    """``breaker`` with the unit's own buffer engagement angle α0 [rad]: each capture's reduced
+    state, CO, τ and α0 polished together, the median α0 over the captures (one unit, one α0;
+    the median is robust to one capture a defect pulls). α0 ±3 % left at the file's value is a
+    0.2σ gap that a catalogued buffer effect would take (issue 29)."""
+    import dataclasses
+
+    a0 = float(breaker.alpha0)
+    found = []
+    for data, x0 in zip(datas, starts):
+        lo, hi = _bounds(x0)
+        lo, hi = np.append(lo, a0 * (1 - ALPHA0_SPAN)), np.append(hi, a0 * (1 + ALPHA0_SPAN))
+        scale = np.append(np.maximum(np.abs(x0), 1e-6), a0 * 0.01)
+        scale[-2] = 1e-4
+
+        def fun(z, data=data):
+            b = dataclasses.replace(breaker, alpha0=float(z[-1]))
+            return _residual(z[:-1], data, b, "open")
+
+        z0 = np.clip(np.append(x0, a0), lo, hi)
+        res = least_squares(fun, z0, bounds=(lo, hi), x_scale=scale, max_nfev=BASE_NFEV, diff_step=1e-6)
+        found.append(float(res.x[-1]))
+    return dataclasses.replace(breaker, alpha0=float(np.median(found)))
 
 
 def with_estimated_structure(breaker: Breaker, fits) -> Breaker:
@@ -130,7 +167,10 @@ def linearise(x, data: WindowData, breaker: Breaker, operation: str) -> CaptureW
         cols.append((model_curve(xp, data, breaker, operation) - m0) * w / h)
     J = np.column_stack(cols)
     J = np.where(np.isfinite(J), J, 0.0)
-    Q, _ = np.linalg.qr(J)
+    # orthonormal basis of what the state can move; a direction the data cannot see (a damping
+    # that acts nowhere in this window) is dropped rather than turned into a random column
+    U, sv, _ = np.linalg.svd(J, full_matrices=False)
+    Q = U[:, sv > sv[0] * 1e-8] if sv.size and sv[0] > 0 else U[:, :0]
     return CaptureWindow(data, np.asarray(x, float), np.where(np.isfinite(r), r, 0.0), J, Q)
 
 

@@ -18,33 +18,14 @@ from scipy.integrate import solve_ivp
 
 from service.mechanics.breaker import Breaker
 from service.mechanics.trajectory import Trajectory
-from . import dynamics
-from .contact_wipe import TOUCH_FRACTION
+from service.mechanics.effects import dynamics
+from service.mechanics.effects.integrator import closing_constants, integrate, opening_constants
+from service.mechanics.effects.sensor_nonlinearity import sensor_reading
 from .effects import EFFECT_NAMES, Effects, check_operation, effect_vector
-from .sensor_nonlinearity import sensor_reading
 
 OPENING_PARAMETERS = ("AO", "BO", "DO", "EO")
 CLOSING_PARAMETERS = ("AC", "BC", "CC", "DC")
 FAST_DT = 1.0 / 128_000  # [s]
-_EMPTY = np.zeros(2)
-_EMPTY2 = np.zeros((4, 1))
-
-
-def opening_constants(breaker: Breaker) -> np.ndarray:
-    """[CO s^-1, α0 rad, X1 = xO1/rO rad, stroke rad] for ``dynamics.opening_rhs``."""
-    return np.array([breaker.CO, breaker.alpha0, breaker.xO1 / breaker.rO, breaker.stroke])
-
-
-def closing_constants(breaker: Breaker) -> np.ndarray:
-    """Constants for ``dynamics.closing_rhs`` (see its module for the layout)."""
-    g = breaker.closing_geometry
-    cam = breaker.cam
-    h0, h_end = float(cam.theta2[0]), float(cam.theta2.max())
-    th = g.theta1_start
-    g_start = (g.xC0 - g.rC * (1 - np.cos(th))) * np.sin(th) / (g.d + g.rC * np.cos(th))
-    touch = h0 + TOUCH_FRACTION * (h_end - h0)
-    return np.array([g.xC0, g.rC, g.d, th, breaker.CO, g_start, touch, h_end,
-                     0.5 * (h0 + h_end), cam.rise_end])
 
 
 def _param_vector(params: Mapping[str, float], names) -> np.ndarray:
@@ -91,7 +72,7 @@ def simulate_prototype_opening(params: Mapping[str, float], t, *, breaker: Break
     e = effect_vector(effects.as_array())
     x0 = np.zeros(4)
     if method == "fast":
-        theta, omega, ev = _fast(0, x0, p, e, c, None, t, dt_max)
+        theta, omega, ev = integrate(0, x0, p, e, c, None, t, dt_max)
         t_buf, t_peak = ev[0], ev[1]
     elif method == "exact":
         theta, omega, t_buf, t_peak, _ = _exact_opening(x0, p, e, c, t)
@@ -138,7 +119,7 @@ def simulate_prototype_closing(params: Mapping[str, float], t, *, breaker: Break
     h0 = float(breaker.cam.theta2[0])
     x0 = np.array([c[3], 0.0, h0, 0.0])
     if method == "fast":
-        theta, omega, ev = _fast(1, x0, p, e, c, breaker.cam, t, dt_max)
+        theta, omega, ev = integrate(1, x0, p, e, c, breaker.cam, t, dt_max)
         t_touch, t_peak, stalled = ev[0], ev[1], bool(ev[2])
     elif method == "exact":
         theta, omega, t_touch, t_peak, stalled, _ = _exact_closing(x0, p, e, c, breaker.cam, t)
@@ -175,19 +156,6 @@ def prototype_state(operation: str, params: Mapping[str, float], t, *, breaker: 
     c = closing_constants(breaker)
     x0 = np.array([c[3], 0.0, float(breaker.cam.theta2[0]), 0.0])
     return _exact_closing(x0, p, e, c, breaker.cam, t)[-1]
-
-
-def _fast(op, x0, p, e, c, cam, t, dt_max):
-    tc = np.maximum(t, 0.0)
-    if tc.size and np.any(np.diff(tc) < 0):
-        raise ValueError("the prototype needs non-decreasing times")
-    if cam is None:
-        cx, cy, cc = _EMPTY, _EMPTY, _EMPTY2
-    else:
-        cx, cy, cc = cam.theta1, cam.theta2, cam.coefficients
-    theta, omega, ev = dynamics.integrate_rk4(op, x0, p, e, c, cx, cy, cc,
-                                              np.ascontiguousarray(tc), float(dt_max))
-    return theta, omega, ev
 
 
 def _piecewise(rhs, x0, t_end, switches, t_eval):
@@ -300,40 +268,3 @@ def _exact_closing(x0, p, e, c, cam, t):
     stalled = "stall" in times and times["stall"] < times.get("rise_end", np.inf)
     h, h1, _ = cam.evaluate(y[0])
     return h, h1 * y[1], times.get("touch", np.nan), times.get("rise_end", np.nan), stalled, y
-
-
-def simulate_family(operation: str, params: Mapping[str, float], t, *, breaker: Breaker,
-                    effect: str | None = None, strength: float = 0.0, shape=None,
-                    dt_max: float = FAST_DT) -> Trajectory:
-    """One operation with one effect of its family (fast integrator), for the diagnosis fits.
-
-    ``strength`` may be negative for the SIGNED effects (degressive spring, sensor reading high);
-    ``shape`` holds that effect's shape parameters (effects.SHAPES order; defaults if None).
-    ``params`` as in :func:`simulate_prototype_opening` / :func:`simulate_prototype_closing`.
-    """
-    names = OPENING_PARAMETERS if operation == "open" else CLOSING_PARAMETERS
-    p = _param_vector(params, names)
-    t = np.asarray(t, dtype=float)
-    if not np.all(np.isfinite(p)) or p[0 if operation == "open" else 1] <= 0:
-        return _failed(t, f"invalid parameters {dict(zip(names, p))}")
-    strengths = np.zeros(len(EFFECT_NAMES))
-    shapes = None
-    if effect is not None:
-        strengths[EFFECT_NAMES.index(effect)] = strength
-        if shape is not None:
-            shapes = {effect: shape}
-    e = effect_vector(strengths, shapes)
-    if operation == "open":
-        theta, omega, ev = _fast(0, np.zeros(4), p, e, opening_constants(breaker), None, t, dt_max)
-    else:
-        c = closing_constants(breaker)
-        x0 = np.array([c[3], 0.0, float(breaker.cam.theta2[0]), 0.0])
-        theta, omega, ev = _fast(1, x0, p, e, c, breaker.cam, t, dt_max)
-    if effect == "sensor_nonlinearity" and strength != 0.0:
-        sh = e[len(EFFECT_NAMES) + 3 * EFFECT_NAMES.index(effect):][:2]
-        if operation == "open":
-            theta = sensor_reading(theta, strength, breaker.stroke, sh[0], sh[1])
-        else:
-            theta = breaker.stroke - sensor_reading(breaker.stroke - theta, strength, breaker.stroke, sh[0], sh[1])
-    ok = bool(np.all(np.isfinite(theta)))
-    return Trajectory(t, theta, omega, ok, "ok" if ok else "diverged", float(ev[1]), {})
