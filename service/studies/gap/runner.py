@@ -17,12 +17,15 @@ import os
 import time
 from pathlib import Path
 
+import numpy as np
+
 DEFAULT_SEED = 2026
 SIZES = {"per_effect": 4, "controls": 6, "two_effect": 8, "outside": 2, "captures_per_group": 5}
 QUICK = {"per_effect": 1, "controls": 2, "two_effect": 1, "outside": 1, "captures_per_group": 3}
 DEVELOPMENT = ("a", "b", "c")
 # the argument of ``diagnose`` that selects the effect subspaces built without one prototype
 LOPO_ARGUMENT = "without_prototype"
+CHUNK = 3   # groups per worker between two summaries
 
 
 def generator(p: str):
@@ -123,11 +126,21 @@ def run_gap_study(out_dir: Path, *, seed: int = DEFAULT_SEED, quick: bool = Fals
         earlier = json.loads(Path(with_rows).read_text())
         rows = [r for r in earlier["rows"] if r["prototype"] not in protos]
         protos = [p for p in earlier["prototypes"] if p not in protos] + protos
-    for p in [q for q in protos if not any(r["prototype"] == q for r in rows)]:
-        rows += pool_map(diagnose_group, write_jobs(out, p, seed, sizes), max(1, int(workers)))
-        meta = {"seed": seed, "quick": quick, "sizes": sizes, "prototypes": protos, "workers": workers,
-                "wall_s": time.perf_counter() - t0, "complete": p == protos[-1]}
-        result = summarise(out, rows, meta, ship_calibration=ship_calibration and p == protos[-1])
+    todo = [q for q in protos if not any(r["prototype"] == q for r in rows)]
+    for p in todo:
+        jobs = write_jobs(out, p, seed, sizes)
+        # a shuffled order and a summary after every few groups: a run stopped early has scored a
+        # sample of every kind of group, not the first effects only
+        order = np.random.default_rng([seed, 29]).permutation(len(jobs))
+        jobs = [jobs[int(i)] for i in order]
+        step = CHUNK * max(1, int(workers))
+        for k in range(0, len(jobs), step):
+            rows += pool_map(diagnose_group, jobs[k:k + step], max(1, int(workers)))
+            last = p == todo[-1] and k + step >= len(jobs)
+            meta = {"seed": seed, "quick": quick, "sizes": sizes, "prototypes": protos, "workers": workers,
+                    "wall_s": time.perf_counter() - t0, "complete": last,
+                    "groups_done": {q: sum(r["prototype"] == q for r in rows) for q in protos}}
+            result = summarise(out, rows, meta, ship_calibration=ship_calibration and last)
     return result
 
 
@@ -137,5 +150,5 @@ def rescore(out_dir, ship_calibration: bool = False) -> dict:
 
     out = Path(out_dir)
     g = json.loads((out / "gap_groups.json").read_text())
-    meta = {k: g.get(k) for k in ("seed", "quick", "sizes", "prototypes", "workers", "wall_s", "complete")}
+    meta = {k: g.get(k) for k in ("seed", "quick", "sizes", "prototypes", "workers", "wall_s", "complete", "groups_done")}
     return summarise(out, g["rows"], meta, ship_calibration=ship_calibration)
