@@ -41,7 +41,7 @@ def test_two_effects_both_named_or_both_rivals():
 def test_undetectable_needs_none_absorbed_and_an_agreeing_bias():
     bias = {"CO": 0.10, "AO": 0.01, "tau": 0.9}
     ok = row(["v"], "none", detectable=False, bias=bias,
-             absorbed=[{"effect": "v", "parameter_bias": {"CO": 0.12, "AO": -0.02}}])
+             absorbed=[{"effect": "v", "bias": {"CO": 0.12, "AO": -0.02}}])
     assert absorbed_ok(ok)
     assert not absorbed_ok({**ok, "absorbed": []})
     assert not absorbed_ok({**ok, "status": "named", "effects": ["v"]})

@@ -25,6 +25,7 @@ QUICK = {"per_effect": 1, "controls": 2, "two_effect": 1, "outside": 1, "capture
 DEVELOPMENT = ("a", "b", "c")
 # the argument of ``diagnose`` that selects the effect subspaces built without one prototype
 LOPO_ARGUMENT = "without_prototype"
+SUBSPACE_ARGUMENT = "prototypes"   # or: the prototypes the subspaces were built from
 CHUNK = 3   # groups per worker between two summaries
 
 
@@ -72,8 +73,11 @@ def diagnose_group(job: dict) -> dict:
     caps = [read_capture(str(Path(job["dir"]) / f"{s}.cfg"), travel_channel=breaker.channels["travel"],
                          vibration_channel=breaker.channels["vibration"]) for s in job["stems"]]
     kwargs = {}
-    if LOPO_ARGUMENT in inspect.signature(diagnose).parameters:
+    accepted = inspect.signature(diagnose).parameters
+    if LOPO_ARGUMENT in accepted:
         kwargs[LOPO_ARGUMENT] = job["prototype"]
+    elif SUBSPACE_ARGUMENT in accepted and job["prototype"] in DEVELOPMENT:
+        kwargs[SUBSPACE_ARGUMENT] = tuple(q for q in DEVELOPMENT if q != job["prototype"])
     row["lopo_subspaces"] = bool(kwargs)
     t0 = time.perf_counter()
     try:
