@@ -41,7 +41,7 @@ def test_two_effects_both_named_or_both_rivals():
 def test_undetectable_needs_none_absorbed_and_an_agreeing_bias():
     bias = {"CO": 0.10, "AO": 0.01, "tau": 0.9}
     ok = row(["v"], "none", detectable=False, bias=bias,
-             absorbed=[{"effect": "v", "parameter_bias": {"CO": 0.12, "AO": -0.02}}])
+             absorbed=[{"effect": "v", "bias": {"CO": 0.12, "AO": -0.02}}])
     assert absorbed_ok(ok)
     assert not absorbed_ok({**ok, "absorbed": []})
     assert not absorbed_ok({**ok, "status": "named", "effects": ["v"]})
@@ -119,3 +119,16 @@ def test_lopo_never_sees_the_scored_prototype(monkeypatch):
     assert out["a"]["fitted_on"] == ["b", "c"] and out["a"]["n_test"] == 10
     # a map fitted on B and C (more often wrong at a given p) states less than A's own would
     assert out["a"]["calibrated"][4] < real([r for r in _cal_rows() if r["prototype"] == "a"])["y"][-1]
+
+
+def test_summary_calibrates_held_out_prototypes_by_the_development_map(tmp_path):
+    from service.studies.gap.report import summarise
+
+    rows = _cal_rows() + [dict(r, prototype="d") for r in _cal_rows()[:10]]
+    meta = {"seed": 1, "sizes": {}, "prototypes": ["a", "b", "c", "d"]}
+    s = summarise(tmp_path, rows, meta)
+    lopo_ = s["calibration"]["lopo"]
+    assert lopo_["b"]["fitted_on"] == ["a", "c"] and lopo_["d"]["fitted_on"] == ["a", "b", "c"]
+    assert s["calibration"]["map_all_development"]["n"] == 30        # D's rows never enter the map
+    assert "D calibrated on A+B+C" in (tmp_path / "gap.md").read_text()
+    assert s["per_prototype"]["d"]["top1_all_single"]["n"] == 10

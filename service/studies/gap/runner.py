@@ -17,6 +17,8 @@ import os
 import time
 from pathlib import Path
 
+import numpy as np
+
 from .scoring import DEVELOPMENT
 
 DEFAULT_SEED = 2026
@@ -24,6 +26,8 @@ SIZES = {"per_effect": 4, "controls": 6, "two_effect": 8, "outside": 2, "capture
 QUICK = {"per_effect": 1, "controls": 2, "two_effect": 1, "outside": 1, "captures_per_group": 3}
 # the argument of ``diagnose`` that selects the effect subspaces built without one prototype
 LOPO_ARGUMENT = "without_prototype"
+SUBSPACE_ARGUMENT = "prototypes"   # or: the prototypes the subspaces were built from
+CHUNK = 3   # groups per worker between two summaries
 
 
 def generator(p: str):
@@ -70,8 +74,11 @@ def diagnose_group(job: dict) -> dict:
     caps = [read_capture(str(Path(job["dir"]) / f"{s}.cfg"), travel_channel=breaker.channels["travel"],
                          vibration_channel=breaker.channels["vibration"]) for s in job["stems"]]
     kwargs = {}
-    if LOPO_ARGUMENT in inspect.signature(diagnose).parameters:
+    accepted = inspect.signature(diagnose).parameters
+    if LOPO_ARGUMENT in accepted:
         kwargs[LOPO_ARGUMENT] = job["prototype"]
+    elif SUBSPACE_ARGUMENT in accepted and job["prototype"] in DEVELOPMENT:
+        kwargs[SUBSPACE_ARGUMENT] = tuple(q for q in DEVELOPMENT if q != job["prototype"])
     row["lopo_subspaces"] = bool(kwargs)
     t0 = time.perf_counter()
     try:
@@ -104,10 +111,12 @@ def write_jobs(out: Path, p: str, seed: int, sizes: dict) -> list:
 
 
 def run_gap_study(out_dir: Path, *, seed: int = DEFAULT_SEED, quick: bool = False, workers: int = 2,
-                  prototypes=None, sizes=None, ship_calibration: bool = False) -> dict:
+                  prototypes=None, sizes=None, ship_calibration: bool = False, with_rows=None) -> dict:
     """Write the groups of each prototype, diagnose them and run the oracle (a pool of
     ``workers``), score; ``ship_calibration``: also write the map fitted on every development
-    prototype run to ``service/diagnosis/calibration.json``."""
+    prototype run to ``service/diagnosis/calibration.json``. ``with_rows``: the
+    ``gap_groups.json`` of an earlier run whose rows are scored alongside (a held-out prototype
+    run alone is then calibrated by the development prototypes' map)."""
     from ..common import pool_map
     from .report import summarise
 
@@ -118,11 +127,25 @@ def run_gap_study(out_dir: Path, *, seed: int = DEFAULT_SEED, quick: bool = Fals
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     t0 = time.perf_counter()
     rows, result = [], None
-    for p in protos:
-        rows += pool_map(diagnose_group, write_jobs(out, p, seed, sizes), max(1, int(workers)))
-        meta = {"seed": seed, "quick": quick, "sizes": sizes, "prototypes": protos, "workers": workers,
-                "wall_s": time.perf_counter() - t0, "complete": p == protos[-1]}
-        result = summarise(out, rows, meta, ship_calibration=ship_calibration and p == protos[-1])
+    if with_rows is not None:
+        earlier = json.loads(Path(with_rows).read_text())
+        rows = [r for r in earlier["rows"] if r["prototype"] not in protos]
+        protos = [p for p in earlier["prototypes"] if p not in protos] + protos
+    todo = [q for q in protos if not any(r["prototype"] == q for r in rows)]
+    for p in todo:
+        jobs = write_jobs(out, p, seed, sizes)
+        # a shuffled order and a summary after every few groups: a run stopped early has scored a
+        # sample of every kind of group, not the first effects only
+        order = np.random.default_rng([seed, 29]).permutation(len(jobs))
+        jobs = [jobs[int(i)] for i in order]
+        step = CHUNK * max(1, int(workers))
+        for k in range(0, len(jobs), step):
+            rows += pool_map(diagnose_group, jobs[k:k + step], max(1, int(workers)))
+            last = p == todo[-1] and k + step >= len(jobs)
+            meta = {"seed": seed, "quick": quick, "sizes": sizes, "prototypes": protos, "workers": workers,
+                    "wall_s": time.perf_counter() - t0, "complete": last,
+                    "groups_done": {q: sum(r["prototype"] == q for r in rows) for q in protos}}
+            result = summarise(out, rows, meta, ship_calibration=ship_calibration and last)
     return result
 
 
@@ -132,5 +155,5 @@ def rescore(out_dir, ship_calibration: bool = False) -> dict:
 
     out = Path(out_dir)
     g = json.loads((out / "gap_groups.json").read_text())
-    meta = {k: g.get(k) for k in ("seed", "quick", "sizes", "prototypes", "workers", "wall_s", "complete")}
+    meta = {k: g.get(k) for k in ("seed", "quick", "sizes", "prototypes", "workers", "wall_s", "complete", "groups_done")}
     return summarise(out, g["rows"], meta, ship_calibration=ship_calibration)

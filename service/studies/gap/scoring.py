@@ -108,7 +108,7 @@ def absorbed_ok(r) -> bool:
     bias = r.get("oracle", {}).get("bias") or {}
     for a in r.get("absorbed") or []:
         if a["effect"] in r["truth"]:
-            return bias_agrees(a.get("parameter_bias") or {}, bias)
+            return bias_agrees(a.get("bias") or a.get("parameter_bias") or {}, bias)
     return False
 
 
