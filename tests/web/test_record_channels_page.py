@@ -5,6 +5,7 @@ differences. The upload goes over the API, as a utility's would."""
 
 from __future__ import annotations
 
+from contextlib import contextmanager
 from pathlib import Path
 
 import httpx
@@ -36,19 +37,25 @@ def live(tmp_path_factory, browser):
         stop()
 
 
-def _open(browser, live, op_id):
+@contextmanager
+def operation_page(browser, live, op_id):
+    """The operation page signed in as a reader, its channels drawn; no console error after."""
     context = browser.new_context(viewport=VIEWPORT)
     log = PageLog(context, live.base)
-    page = sign_in(context, live, "reader", log)
-    page.goto(f"{live.base}/operations/{op_id}")
-    page.wait_for_selector('body[data-ready="1"]', timeout=30000)
-    page.wait_for_selector("#record-channels:not([hidden])", timeout=30000)
-    return context, log, page
+    try:
+        sign_in(context, live, "reader", log).goto(f"{live.base}/operations/{op_id}")
+        page = context.pages[-1]
+        # app.js has drawn the travel and record_channels.js the recorded channels
+        page.wait_for_selector('body[data-ready="1"] #record-channels:not([hidden])', timeout=30000)
+        yield page
+        assert log.errors == [], log.errors
+        assert log.foreign() == []
+    finally:
+        context.close()
 
 
 def test_opening_shows_coil_currents_dcrm_and_the_analysers_figures(live, browser):
-    context, log, page = _open(browser, live, live.ops["open"])
-    try:
+    with operation_page(browser, live, live.ops["open"]) as page:
         for chart in ("record-travel", "coils", "dcrm"):
             assert canvas_ink(page, f'[data-chart="{chart}"]') > 500, chart
         # one time axis: the coil chart spans the travel chart's milliseconds
@@ -67,19 +74,11 @@ def test_opening_shows_coil_currents_dcrm_and_the_analysers_figures(live, browse
         assert diff == pytest.approx(hvcb - 5.9, abs=2e-3)
         assert page.locator("#contact-word").inner_text() == "contact part"
         screenshot(page, "operation-record-channels")
-        assert log.errors == [], log.errors
-        assert log.foreign() == []
-    finally:
-        context.close()
 
 
 def test_closing_of_the_same_record_marks_contact_touch(live, browser):
-    context, log, page = _open(browser, live, live.ops["close"])
-    try:
+    with operation_page(browser, live, live.ops["close"]) as page:
         assert canvas_ink(page, '[data-chart="coils"]') > 500
         assert "contact touch at" in page.locator("#record-events").inner_text()
         # the closing's fit fails (no cam table): no hvcb figures, so no comparison is shown
         assert page.locator("#comparison-block").is_hidden()
-        assert log.errors == [], log.errors
-    finally:
-        context.close()
