@@ -12,7 +12,11 @@ from ..mechanics.breaker import Breaker
 from ..mechanics.coordinates import operation_coordinate
 from ..mechanics.effects import simulate_effects
 
-BLOCK = 16               # samples per block (128 kHz -> 8 kHz): the noise of a block mean is σ/4
+# A block is a time, not a sample count, so that a 5 kS/s analyser record is diagnosed like a
+# 128 kHz capture: 125 µs (16 samples at 128 kHz; one sample at 8 kS/s and below). It is well
+# under the ~1 ms the shortest effect (a latch ramp, a contact touch) lasts, so averaging within a
+# block loses nothing the catalogue or the discrepancy term resolves.
+BLOCK_S = 1.0 / 8_000    # [s]
 
 # A capture's own state: the reduced parameters it estimates plus, for an opening, CO [s^-1], the
 # linear damping that grease and puffer gas change with the temperature from one operation to the
@@ -28,7 +32,7 @@ class WindowData:
     """Block means of the operation coordinate over the valid window.
 
     t : block centres [s from the window start (latch shock)]; y : block means [rad];
-    count : samples per block; noise : per-sample noise sd [rad]; t_start : window start in
+    count : samples per block (BLOCK_S of them); noise : per-sample noise sd [rad]; t_start : window start in
     capture time [s]; dc : DC used for closings [s^-2]; source : capture name.
     """
 
@@ -46,13 +50,18 @@ class WindowData:
         return np.sqrt(self.count) / self.noise
 
 
+def block_samples(sample_rate: float) -> int:
+    """Samples per block at ``sample_rate`` [Hz]: BLOCK_S of them, at least one."""
+    return max(1, int(round(float(sample_rate) * BLOCK_S)))
+
+
 def window_data(capture, fit, breaker: Breaker, operation: str) -> WindowData:
     """Cut the fit's valid window out of ``capture`` and block-average it."""
     y_all = operation_coordinate(capture.travel, operation, breaker.stroke)
     t_all = capture.t
     sel = (t_all >= fit.window_s[0]) & (t_all <= fit.window_s[1])
     t, y = t_all[sel] - fit.window_s[0], y_all[sel]
-    edges = np.arange(0, t.size, BLOCK)
+    edges = np.arange(0, t.size, block_samples(capture.sample_rate))
     count = np.diff(np.append(edges, t.size)).astype(float)
     tb = np.add.reduceat(t, edges) / count
     yb = np.add.reduceat(y, edges) / count

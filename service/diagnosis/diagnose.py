@@ -4,8 +4,8 @@ A one-way pipeline, one module per stage:
 
 1. ``windows``    the captures' data: valid windows, noise, reduced fit, state Jacobian;
 2. ``hypotheses`` joint fits per hypothesis (none, each family, pairs, outside the catalogue);
-3. ``evidence``   posterior probabilities (BIC evidence, stated priors, dispersion);
-4. ``decision``   the one rule: name what reaches P_NAME, else ambiguous / mild;
+3. ``evidence``   posterior probabilities (marginal likelihoods under the in-motion noise model);
+4. ``decision``   the one rule: state what reaches P_NAME (calibrated), else ambiguous;
 5. ``report``     the JSON-ready result (+ ``measurement``: the recording that would decide).
 """
 
@@ -27,7 +27,7 @@ __all__ = ["diagnose", "DiagnosisError"]
 
 
 def diagnose(captures, breaker: Breaker, operation: str, *, effects=None, seed: int = 1,
-             fitter=None, next_measurements: bool = True) -> dict:
+             fitter=None, next_measurements: bool = True, strengths: dict | None = None) -> dict:
     """Diagnose the sim-to-real gap of one breaker from its captures of one operation.
 
     Parameters
@@ -44,6 +44,9 @@ def diagnose(captures, breaker: Breaker, operation: str, *, effects=None, seed: 
         ``service.estimation.fit_capture``).
     next_measurements : bool
         Compute ``next_measurement`` when rivals remain.
+    strengths : dict, optional
+        The breaker's typical effect strengths (its breaker file's ``[effects]``; default the
+        catalogue's REFERENCE_STRENGTHS): the scale of the fits and of the ``absorbed`` check.
 
     Returns
     -------
@@ -61,7 +64,7 @@ def diagnose(captures, breaker: Breaker, operation: str, *, effects=None, seed: 
     windows = prepare(list(captures), breaker, operation, fitter=fitter, seed=seed)
     fits = fit_all(windows, catalogue)
     ev = evidence(fits)
-    dec = decide(fits, ev, catalogue)
+    dec = decide(fits, ev, catalogue, strengths)
     nm = next_measurement(fits, dec.rivals) if (next_measurements and dec.status == "ambiguous") else []
     ho = holdout(windows, fits.hypotheses[dec.hypothesis]) if dec.status == "named" else None
     return build(fits, ev, dec, nm, ho, time.perf_counter() - t0)

@@ -1,22 +1,25 @@
-"""Stage 3 — evidence: posterior probabilities of the hypotheses.
+"""Stage 3 — evidence: posterior probabilities of the hypotheses under a noise model estimated
+from the data in motion.
 
-Each hypothesis H gets the BIC (Schwarz) approximation of its marginal likelihood,
+Noise model. The whitening of ``windows`` uses each capture's pre-trigger σ_i; in motion the
+noise can be larger (vibration) and correlated. Both are estimated from the residual the most
+flexible description leaves (the best catalogued hypothesis plus the discrepancy term with every
+coefficient free, ``discrepancy.Discrepancy.ls_residuals``):
 
-    ln p(D | H) ≈ −½ (χ²_H / φ + k_H ln n) + ln prior(H),
+- scale φ = Σ e² / (n − p_states − k), the in-motion variance in units of the pre-trigger one;
+- AR(1) coefficient ρ, the pooled lag-1 autocorrelation of those residuals. For a signature that
+  is smooth on the block scale (every catalogued effect, the discrepancy's splines), pre-whitening
+  by (1 − ρL) divides its χ² contribution by κ = (1 + ρ)/(1 − ρ) (the long-run variance of an
+  AR(1), e.g. Hamilton 1994 §7.2) and leaves n/κ effectively independent blocks.
 
-with n the number of blocks over all captures and k_H its free parameters beyond the reduced
-model (each shape parameter paid for). φ ≥ 1 is the dispersion: χ² per degree of freedom of the
-most flexible hypothesis (``outside``), so that when even the best description leaves more than
-noise, every likelihood ratio is tempered by it (the quasi-likelihood correction, as in QAIC).
+So s² = φ·κ and n_eff = n/κ. Each catalogued hypothesis H (k_H parameters beyond the states) gets
+the Schwarz approximation of its marginal likelihood, with the noise scale profiled:
 
-The families are approximations of the real mechanism: two of them can differ in χ² by hundreds
-because of a systematic misfit in one stretch of one capture, which the noise alone would never
-produce. The probabilities therefore account for where the evidence comes from, as pseudo-BMA+
-does (Yao, Vehtari, Simpson & Gelman 2018, Bayesian Analysis 13(3) 917–1007): the data are cut
-into units (``UNIT_BLOCKS`` consecutive blocks of one capture), the log likelihood of each
-hypothesis is summed over the units with Bayesian-bootstrap weights (Dirichlet(1, …, 1), scaled
-to the number of units), and the posterior is averaged over ``DRAWS`` draws. Evidence spread
-over every unit stays decisive; evidence from a few units is tempered.
+    ln p(D | H) ≈ −½ χ²_H / s² − ½ k_H ln n_eff,
+
+and ``outside_catalogue`` the closed-form marginal likelihood of the discrepancy term added to
+the best catalogued hypothesis (``discrepancy``, its amplitude marginalised). Detection is the
+nested likelihood ratio these imply: no size gate; more captures give more evidence.
 
 Priors (stated): none, outside_catalogue and each single family get equal prior weight; each
 pair gets 1/F of it (F families), i.e. "two defects at once" is as likely a priori as one
@@ -31,55 +34,70 @@ import numpy as np
 
 from .hypotheses import Fits
 
-UNIT_BLOCKS = 32    # 4 ms at 8 kHz blocks: the exchangeable unit of the Bayesian bootstrap
-DRAWS = 2000        # Monte-Carlo draws of the bootstrap (sampling precision ~1 %)
-
 
 @dataclass
 class Evidence:
-    """Stage 3 result: per hypothesis name its BIC, prior and posterior probability."""
+    """Stage 3 result: per hypothesis name its log evidence, prior and posterior probability;
+    the noise model (φ, ρ, s², n_eff) and the discrepancy's ln Bayes factor."""
 
-    bic: dict
+    log_evidence: dict
     prior: dict
     probabilities: dict
     dispersion: float
+    rho: float
+    s2: float
     n: int
+    n_eff: float
+    log_bf_discrepancy: float
+
+    @property
+    def bic(self) -> dict:
+        """−2 ln evidence (without the prior), the scale of a BIC."""
+        return {k: float(-2.0 * (v - np.log(self.prior[k]))) for k, v in self.log_evidence.items()}
 
     def ranked(self):
         return sorted(self.probabilities.items(), key=lambda kv: -kv[1])
 
 
-def evidence(fits: Fits, *, seed: int = 1) -> Evidence:
+def lag1(residuals) -> float:
+    """Pooled lag-1 autocorrelation of per-capture residual vectors."""
+    num = den = 0.0
+    for e in residuals:
+        e = np.asarray(e, float) - float(np.mean(e))
+        num += float(np.dot(e[:-1], e[1:]))
+        den += float(np.dot(e, e))
+    return num / den if den > 0 else 0.0
+
+
+def evidence(fits: Fits) -> Evidence:
     n = fits.windows.n
     hyps = fits.hypotheses
-    names = list(hyps)
     out = hyps["outside_catalogue"]
-    p_state = sum(cw.J.shape[1] for cw in fits.windows.captures)
-    dof = max(n - p_state - out.k, 1)
-    phi = max(1.0, out.chi2 / dof)
+    disc = out.discrepancy
+    res = disc.ls_residuals()
+    p_state = sum(cw.Q.shape[1] for cw in fits.windows.captures)
+    dof = max(n - p_state - disc.k - out.base_k, 1)
+    phi = float(sum(float(np.sum(e * e)) for e in res) / dof)
+    rho = max(lag1(res), 0.0)
+    kappa = (1.0 + rho) / (1.0 - rho) if rho < 0.99 else 199.0
+    s2 = max(phi, 1e-6) * kappa
+    n_eff = n / kappa
     singles = [h for h in hyps.values() if len(h.effects) == 1 and not h.outside]
     F = max(len(singles), 1)
     prior = {name: (1.0 / F if len(h.effects) == 2 and not h.outside else 1.0) for name, h in hyps.items()}
     z = sum(prior.values())
     prior = {k: v / z for k, v in prior.items()}
-    bic = {name: h.chi2 / phi + h.k * np.log(n) for name, h in hyps.items()}
-
-    # per-unit log likelihood, hypotheses × units
-    ll = []
-    for name in names:
-        row = []
-        for e in hyps[name].residuals():
-            for a in range(0, e.size, UNIT_BLOCKS):
-                row.append(-0.5 * float(np.sum(e[a:a + UNIT_BLOCKS] ** 2)) / phi)
-        ll.append(row)
-    ll = np.array(ll)
-    U = ll.shape[1]
-    const = np.array([-0.5 * hyps[k].k * np.log(n) + np.log(prior[k]) for k in names])
-    rng = np.random.default_rng(seed)
-    alpha = rng.dirichlet(np.ones(U), size=DRAWS) * U          # DRAWS × U, each row sums to U
-    zz = alpha @ ll.T + const                                   # DRAWS × H
-    zz -= zz.max(axis=1, keepdims=True)
-    w = np.exp(zz)
-    post = (w / w.sum(axis=1, keepdims=True)).mean(axis=0)
-    return Evidence({k: float(v) for k, v in bic.items()}, prior,
-                    {k: float(p) for k, p in zip(names, post)}, float(phi), int(n))
+    logev = {}
+    for name, h in hyps.items():
+        if h.outside:
+            continue
+        logev[name] = -0.5 * h.chi2 / s2 - 0.5 * h.k * np.log(n_eff) + np.log(prior[name])
+    base = "+".join(out.effects) if out.effects else "none"
+    lbf = disc.log_bf(s2)
+    logev["outside_catalogue"] = logev[base] - np.log(prior[base]) + lbf + np.log(prior["outside_catalogue"])
+    names = list(logev)
+    v = np.array([logev[k] for k in names])
+    w = np.exp(v - v.max())
+    post = w / w.sum()
+    return Evidence({k: float(logev[k]) for k in names}, prior, {k: float(p) for k, p in zip(names, post)},
+                    phi, float(rho), float(s2), int(n), float(n_eff), float(lbf))

@@ -14,9 +14,8 @@ s_i(φ) = (model(x_i; φ) − model(x_i; none))·w_i is compared on what the sta
 
 which is the Gauss–Newton profile of the joint likelihood over the states (exact for the small
 state changes an effect of realistic size causes). φ is fitted by bounded least squares from the
-family's deterministic starts. ``outside`` adds to the best catalogued hypothesis a generic
-smooth correction per capture (K cubic B-splines over its window), the likelihood-based
-alternative "something the catalogue does not describe".
+family's deterministic starts. ``outside`` adds to the best catalogued hypothesis the
+discrepancy term (``discrepancy``), the alternative "something the catalogue does not describe".
 """
 
 from __future__ import annotations
@@ -25,7 +24,6 @@ from dataclasses import dataclass, field
 from itertools import combinations
 
 import numpy as np
-from scipy.interpolate import BSpline
 from scipy.optimize import least_squares
 
 from ..mechanics.effects import EFFECT_NAMES, OPERATIONS, PHYSICAL_UPPER as FIT_UPPER, REFERENCE_STRENGTHS as REALISTIC
@@ -40,7 +38,6 @@ EXACT_NFEV = 30     # evaluations of the exact joint refit
 EXACT_TOP = 4       # singles refitted exactly: the best by the linearised BIC
 RELIN_NFEV = 12     # evaluations of each re-linearised refit
 PAIR_TOP = 3        # pairs are formed from the best singles (ΔBIC < 0) ...
-SPLINES = 8         # generic correction of the `outside` hypothesis: cubic B-splines per capture
 
 # Deterministic extra starts of each family's shape (besides the prototype's defaults): forms far
 # from the default that a local fit from the default would not reach (signs, exponents, sides).
@@ -88,6 +85,8 @@ class HypothesisFit:
     outside: bool = False
     captures: list = field(repr=False, default_factory=list)   # CaptureWindows linearised at its states
     resid: list | None = field(repr=False, default=None)        # per capture whitened residual (outside)
+    discrepancy: object = field(repr=False, default=None)       # discrepancy.Discrepancy (outside)
+    base_k: int = 0                                             # k of the catalogued part (outside)
 
     def residuals(self):
         """Per capture whitened residual left by the hypothesis (states profiled out)."""
@@ -222,15 +221,20 @@ def refine_exact(windows: Windows, h: HypothesisFit, *, max_nfev: int = EXACT_NF
     if 2 * res.cost > nb + 5 * np.sqrt(2 * nb):
         # not at the noise floor: a strong effect can have pushed the reduced states far from
         # the truth (a contact wipe read as BC −40 %); also start from the breaker's design state
+        # (with the effects as fitted, and with each at its catalogue's nominal form)
         design = br.design_parameters()
         xd = np.array([design[k] for k in STATE[op]])
-        z1 = z0.copy()
-        for i in range(len(caps)):
-            z1[ke + i * p: ke + (i + 1) * p - 1] = xd
-        res1 = least_squares(fun, np.clip(z1, lo, hi), bounds=(lo, hi), x_scale=scale, max_nfev=max_nfev,
-                             diff_step=1e-5, jac_sparsity=sp, tr_solver="lsmr")
-        if res1.cost < res.cost:
-            res = res1
+        nominal = np.concatenate([np.concatenate([[0.5 * REALISTIC[e] if e != "rod_elasticity" else 1.0],
+                                                  shape_defaults(e)]) for e in effects])
+        for phi0 in (z0[:ke], nominal):
+            z1 = z0.copy()
+            z1[:ke] = phi0
+            for i in range(len(caps)):
+                z1[ke + i * p: ke + (i + 1) * p - 1] = xd
+            res1 = least_squares(fun, np.clip(z1, lo, hi), bounds=(lo, hi), x_scale=scale, max_nfev=max_nfev,
+                                 diff_step=1e-5, jac_sparsity=sp, tr_solver="lsmr")
+            if res1.cost < res.cost:
+                res = res1
     eff = _unpack(res.x[:ke], effects, sl)
     new_caps, sigs, per = [], [], []
     for i, cw in enumerate(caps):
@@ -277,27 +281,16 @@ def none_fit(windows: Windows) -> HypothesisFit:
     return HypothesisFit((), {}, 0, float(sum(per)), per, zeros, captures=list(windows.captures))
 
 
-def spline_basis(t: np.ndarray, k: int = SPLINES) -> np.ndarray:
-    """k cubic B-splines spanning [t0, t1] (uniform knots), evaluated at ``t``."""
-    a, b = float(t[0]), float(t[-1])
-    inner = np.linspace(a, b, k - 2)
-    knots = np.concatenate([[a] * 3, inner, [b] * 3])
-    return BSpline.design_matrix(np.clip(t, a, b), knots, 3).toarray()
-
-
 def outside_fit(windows: Windows, best: HypothesisFit) -> HypothesisFit:
-    """``best`` plus a generic smooth correction per capture (state re-projected with it)."""
-    per, res = [], []
-    for cw, s in zip(best.captures, best.signatures):
-        B = spline_basis(cw.data.t) * cw.data.weight[:, None]
-        A = np.column_stack([cw.J, B])
-        v = cw.r - s
-        coef = np.linalg.lstsq(A, v, rcond=None)[0]
-        res.append(v - A @ coef)
-        per.append(float(np.sum(res[-1] ** 2)))
-    k = best.k + SPLINES * len(windows.captures)
-    return HypothesisFit(best.effects, best.phi, k, float(sum(per)), per, best.signatures, outside=True,
-                         captures=best.captures, resid=res)
+    """``best`` plus the discrepancy term (``discrepancy``): its least-squares residual and χ²
+    (every coefficient free: the noise scale's residual), its closed-form evidence in ``evidence``."""
+    from .discrepancy import build
+
+    disc = build(best, windows.breaker, windows.operation)
+    res = disc.ls_residuals()
+    per = [float(np.sum(e ** 2)) for e in res]
+    return HypothesisFit(best.effects, best.phi, best.k + disc.k, float(sum(per)), per, best.signatures,
+                         outside=True, captures=best.captures, resid=res, discrepancy=disc, base_k=best.k)
 
 
 def fit_all(windows: Windows, catalogue) -> "Fits":

@@ -7,20 +7,22 @@ from pathlib import Path
 
 import numpy as np
 
-from ..mechanics.effects import SHAPES
-from .data import BLOCK, STATE, model_curve
+from ..mechanics.effects import SHAPES, in_words
+from .data import STATE, model_curve
 from .decision import Decision
+from .discrepancy import KNOT_S
 from .evidence import Evidence
-from .hypotheses import Fits
+from .hypotheses import Fits, signature
 from .phases import phase_bounds
 from .whiteness import ljung_box
 
 
-def _ratio(z) -> float:
-    """rmse/noise per sample from whitened block-mean residuals z (noise included)."""
+def _ratio(z, block: float) -> float:
+    """rmse/noise per sample from whitened block-mean residuals z (noise included), blocks of
+    ``block`` samples."""
     if z.size == 0:
         return 1.0
-    return float(np.sqrt(1.0 + max(float(np.mean(z * z)) - 1.0, 0.0) / BLOCK))
+    return float(np.sqrt(1.0 + max(float(np.mean(z * z)) - 1.0, 0.0) / block))
 
 
 def _params(x, operation, extra=None):
@@ -29,9 +31,96 @@ def _params(x, operation, extra=None):
     return d
 
 
+def _effects_hypothesis(fits: Fits, dec: Decision):
+    """The hypothesis whose effects the materiality describes: the answer's, or (none, outside)
+    the most probable one holding effects."""
+    h = fits.hypotheses[dec.hypothesis]
+    if h.effects:
+        return h
+    for name, _ in sorted(dec.probabilities.items(), key=lambda kv: -kv[1]):
+        if fits.hypotheses[name].effects:
+            return fits.hypotheses[name]
+    return None
+
+
+def materiality(fits: Fits, ev: Evidence, dec: Decision) -> dict:
+    """How big the gap is and what the fitted effect does to the parameters, beside the answer
+    (never changing it). The gap per sample [σ] with a 95 % interval from the noncentral χ²
+    (sd √(2n + 4λ), λ = χ² − n); per effect its fitted strength with a 95 % interval (the
+    signature is linear in the strength to first order: sd = |s|·√(s²/Σ‖P⊥sig‖²)), its unabsorbed
+    contribution [σ per sample], the relative bias it puts into each reduced parameter, and
+    ``material``: that contribution exceeds σ/√block, the sd of one block mean."""
+    w = fits.windows
+    n, block = ev.n, w.block
+    lam = max(fits.hypotheses["none"].chi2 / ev.s2 - n, 0.0)
+    sd = float(np.sqrt(2 * n + 4 * lam))
+
+    def g(x):
+        return float(np.sqrt(max(x, 0.0) / n / block))
+
+    out = {"gap_sigma": g(lam), "gap_sigma_interval": [g(lam - 1.96 * sd), g(lam + 1.96 * sd)], "effects": []}
+    h = _effects_hypothesis(fits, dec)
+    if h is None:
+        return out
+    names = STATE[w.operation]
+    for e, st, sh in h.as_effects():
+        sigs = [signature(cw, w.operation, w.breaker, [(e, st, sh)]) for cw in h.captures]
+        u = sum(float(np.sum(cw.project_out(s) ** 2)) for cw, s in zip(h.captures, sigs))
+        sd_s = abs(st) * float(np.sqrt(ev.s2 / u)) if u > 0 else float("inf")
+        bias = np.mean([cw.state_step(s) / np.where(cw.x == 0, 1.0, cw.x) for cw, s in zip(h.captures, sigs)], axis=0)
+        contrib = float(np.sqrt(u / n / block))
+        out["effects"].append({
+            "effect": e, "in_words": in_words(e), "strength": float(st),
+            "strength_interval": [float(st - 1.96 * sd_s), float(st + 1.96 * sd_s)],
+            "shape": {nm[0]: float(v) for nm, v in zip(SHAPES[e], sh)},
+            "contribution_sigma": contrib, "material": contrib >= 1.0 / np.sqrt(block),
+            "bias": {k: float(v) for k, v in zip(names, bias[:len(names)])}})
+    return out
+
+
+def discrepancy_report(fits: Fits, ev: Evidence) -> dict:
+    """Where the part no catalogued hypothesis explains lies: the discrepancy term's posterior
+    mean (at its most probable amplitude) per phase [mrad rms and noise floors] and its peak
+    [ms after the motion onset, phase]; ``shape`` "transient" when half its energy lies within
+    2 ms, else "spread"."""
+    out = fits.hypotheses["outside_catalogue"]
+    w = fits.windows
+    fitted = out.discrepancy.posterior_fit(ev.s2)
+    per_phase, peak, energy = {}, (0.0, None, None), []
+    for cw, d in zip(out.captures, fitted):
+        rad = d / cw.data.weight
+        tau = float(cw.x[-1])
+        tm = cw.data.t - tau
+        theta = model_curve(cw.x, cw.data, w.breaker, w.operation)
+        for name, a, b in phase_bounds(w.operation, tm, theta, float(tm[-1]), w.breaker):
+            sel = (tm >= a) & (tm <= b)
+            acc = per_phase.setdefault(name, [])
+            acc.append(rad[sel])
+            if np.any(sel):
+                i = int(np.argmax(np.abs(rad) * sel))
+                if abs(rad[i]) > peak[0]:
+                    peak = (float(abs(rad[i])), float(tm[i]), name)
+        energy.append((tm, rad * rad))
+    noise = float(np.sqrt(np.mean([cw.data.noise ** 2 for cw in out.captures])))
+    phases = []
+    for name, parts in per_phase.items():
+        v = np.concatenate(parts) if parts else np.zeros(0)
+        rms = float(np.sqrt(np.mean(v * v))) if v.size else 0.0
+        phases.append({"phase": name, "rms_mrad": 1e3 * rms, "rms_noise": rms / noise if noise > 0 else 0.0})
+    shape = "none"
+    if peak[1] is not None:
+        near = sum(float(np.sum(e[np.abs(t - peak[1]) <= 1e-3])) for t, e in energy)
+        total = sum(float(np.sum(e)) for _, e in energy)
+        shape = "transient" if total > 0 and near >= 0.5 * total else "spread"
+    return {"log_bayes_factor": ev.log_bf_discrepancy, "phases": phases,
+            "peak": {"mrad": 1e3 * peak[0], "t_ms": None if peak[1] is None else 1e3 * peak[1], "phase": peak[2]},
+            "shape": shape, "knot_spacing_ms": 1e3 * KNOT_S}
+
+
 def build(fits: Fits, ev: Evidence, dec: Decision, next_meas: list, holdout, runtime_s: float) -> dict:
     w = fits.windows
     op, br, caps = w.operation, w.breaker, w.captures
+    block = w.block
     chosen = fits.hypotheses[dec.hypothesis]
     if dec.status != "named":
         chosen = fits.hypotheses["none"]
@@ -53,12 +142,12 @@ def build(fits: Fits, ev: Evidence, dec: Decision, next_meas: list, holdout, run
             acc["za"].append(za[sel])
     for name, acc in per_phase.items():
         where.append({"phase": name, "t0_s": float(acc["t0_s"]), "t1_s": float(acc["t1_s"]),
-                      "gap_before": _ratio(np.concatenate(acc["zb"])),
-                      "gap_after": _ratio(np.concatenate(acc["za"]))})
+                      "gap_before": _ratio(np.concatenate(acc["zb"]), block),
+                      "gap_after": _ratio(np.concatenate(acc["za"]), block)})
 
     noise = float(np.sqrt(np.mean([cw.data.noise ** 2 for cw in caps])))
     zb, za = np.concatenate(before), np.concatenate(after)
-    rb, ra = _ratio(zb), _ratio(za)
+    rb, ra = _ratio(zb, block), _ratio(za, block)
     gb, ga = np.sqrt(max(rb * rb - 1, 0)), np.sqrt(max(ra * ra - 1, 0))
     gap = {"before_rms_rad": rb * noise, "after_rms_rad": ra * noise, "noise_rad": noise,
            "shrink": float(1 - ga / gb) if gb > 0 else 0.0,
@@ -73,54 +162,70 @@ def build(fits: Fits, ev: Evidence, dec: Decision, next_meas: list, holdout, run
     named = []
     if chosen.effects and dec.status == "named":
         for e, s, sh in chosen.as_effects():
-            named.append({"effect": e, "strength": s, "shape": {n[0]: float(v) for n, v in zip(SHAPES[e], sh)},
-                          "mild": e in dec.mild})
-    probs = dict(sorted(ev.probabilities.items(), key=lambda kv: -kv[1]))
-    return {
+            named.append({"effect": e, "in_words": in_words(e), "strength": s,
+                          "shape": {n[0]: float(v) for n, v in zip(SHAPES[e], sh)}})
+    probs = dict(sorted(dec.probabilities.items(), key=lambda kv: -kv[1]))
+    mat = materiality(fits, ev, dec)
+    result = {
         "operation": op, "breaker": br.name, "captures": len(caps),
         "sources": [cw.data.source for cw in caps],
         "status": dec.status, "effects": list(dec.effects), "named": named,
-        "probabilities": probs, "rivals": dec.rivals, "mild": dec.mild,
-        "answer": dec.answer, "answer_probability": float(dec.answer_probability),
-        "answers": dict(sorted(dec.answers.items(), key=lambda kv: -kv[1])),
+        "probabilities": probs, "rivals": dec.rivals,
+        "answer": dec.answer, "answer_in_words": in_words(dec.answer),
+        "answer_probability": float(dec.answer_probability), "raw_probability": float(dec.raw_probability),
+        "calibration": dec.calibration,
         "absorbed": dec.absorbed, "where": where, "gap": gap,
+        "materiality": mat, "discrepancy": discrepancy_report(fits, ev),
+        "noise_model": {"dispersion": ev.dispersion, "ar1": ev.rho, "scale": ev.s2, "blocks": ev.n,
+                        "effective_blocks": ev.n_eff, "samples_per_block": block},
         "reduced_parameters": reduced, "corrected_parameters": corrected,
         "next_measurement": next_meas,
         "holdout_shrink": holdout,
         "bic": ev.bic, "dispersion": ev.dispersion, "blocks": ev.n,
-        "message": message(dec, probs, gap, len(caps)),
         # issue-11 keys kept for the operation page until it moves to the keys above
         "verdict": "+".join(dec.effects) if dec.status == "named" else dec.status,
         "candidates": [{"effect": k, "probability": p} for k, p in list(probs.items())[:6]],
         "how_far": None,
         "runtime_s": float(runtime_s),
     }
+    result["message"] = message(result)
+    return result
 
 
-def message(dec: Decision, probs, gap, n) -> str:
-    ratio = gap["before_rms_rad"] / gap["noise_rad"]
+def message(r: dict) -> str:
+    """The result in one sentence: the same answer and probability as the table."""
+    g = r["gap"]
+    ratio = g["before_rms_rad"] / g["noise_rad"]
+    n = r["captures"]
     who = f"{n} capture{'s' if n > 1 else ''}"
-    if dec.status == "none":
-        if dec.mild:
-            return (f"No gap that matters over {who} ({ratio:.2f}× the noise floor); present but mild: "
-                    f"{', '.join(dec.mild)}.")
-        return f"The reduced model fits {who} to the noise floor ({ratio:.2f}×): no unmodelled effect."
-    if dec.status == "named":
-        p = dec.answer_probability
-        extra = f" ({', '.join(dec.mild)} present but mild)" if dec.mild else ""
-        return (f"{' and '.join(dec.effects)}{extra} (probability {p:.2f}) explains the gap over {who}: "
-                f"{gap['before_rms_rad'] * 1e3:.2f} → {gap['after_rms_rad'] * 1e3:.2f} mrad rms.")
-    if dec.status == "unexplained":
+    p = r["answer_probability"]
+    if r["status"] == "none":
+        return (f"No unmodelled effect (probability {p:.2f}) over {who}: the reduced model fits to "
+                f"{ratio:.2f}× the noise floor.")
+    if r["status"] == "named":
+        return (f"{r['answer_in_words']} (probability {p:.2f}) explains the gap over {who}: "
+                f"{g['before_rms_rad'] * 1e3:.2f} → {g['after_rms_rad'] * 1e3:.2f} mrad rms.")
+    if r["status"] == "unexplained":
+        pk = r["discrepancy"]["peak"]
+        at = f", largest in the {pk['phase'].replace('_', ' ')} phase" if pk["phase"] else ""
         return (f"A gap of {ratio:.2f}× the noise floor over {who} that no catalogued effect describes "
-                f"(outside the catalogue, probability {probs['outside_catalogue']:.2f}).")
-    return ("Ambiguous: " + ", ".join(f"{r['effect']} {r['probability']:.2f}" for r in dec.rivals)
-            + f" over {who}; see next_measurement.")
+                f"(outside the catalogue, probability {p:.2f}{at}).")
+    return ("Ambiguous: " + ", ".join(f"{in_words(x['effect'])} {x['probability']:.2f}" for x in r["rivals"])
+            + f" over {who}; see the next measurement.")
+
+
+def percent(v: float) -> str:
+    """A relative value in %, signed, without a "−0.0 %"."""
+    x = 100.0 * float(v)
+    return "0.0 %" if abs(x) < 0.05 else f"{x:+.1f} %"
 
 
 def format_report(result: dict) -> str:
     g = result["gap"]
     lines = [f"hvcb diagnose: {result['operation']} on breaker {result['breaker']}, {result['captures']} capture(s)",
-             f"status: {result['status']}  {result['message']}",
+             f"status: {result['status']}  answer: {result['answer_in_words']} ({result['answer']}), "
+             f"probability {result['answer_probability']:.3f}",
+             result["message"],
              f"gap: {g['before_rms_rad'] * 1e3:.3f} -> {g['after_rms_rad'] * 1e3:.3f} mrad rms, noise "
              f"{g['noise_rad'] * 1e3:.3f} mrad, shrink {100 * g['shrink']:.0f} %",
              "where (rms/noise before -> after):"]
@@ -129,13 +234,24 @@ def format_report(result: dict) -> str:
                      f"{ph['gap_before']:5.3f} -> {ph['gap_after']:5.3f}")
     lines.append("probabilities:")
     for k, p in list(result["probabilities"].items())[:6]:
-        lines.append(f"  {k:<40} {p:.3f}")
+        lines.append(f"  {in_words(k):<52} {p:.3f}")
+    m = result["materiality"]
+    lines.append(f"materiality: gap {m['gap_sigma']:.3f} σ per sample "
+                 f"(95 % {m['gap_sigma_interval'][0]:.3f}-{m['gap_sigma_interval'][1]:.3f})")
+    for e in m["effects"]:
+        bias = ", ".join(f"{k} {percent(v)}" for k, v in e["bias"].items())
+        lines.append(f"  {e['in_words']}: strength {e['strength']:.3g} (95 % {e['strength_interval'][0]:.3g}"
+                     f" to {e['strength_interval'][1]:.3g}), {e['contribution_sigma']:.3f} σ unabsorbed; bias {bias}")
     for a in result["absorbed"]:
-        bias = ", ".join(f"{k} {100 * v:+.1f} %" for k, v in a["parameter_bias"].items())
-        lines.append(f"absorbed: {a['effect']} (realistic strength) would bias {bias}")
-    for m in result["next_measurement"][:3]:
-        lines.append(f"next: {m['measurement']} (expected ΔBIC {m['expected_delta_bic']:.0f}, "
-                     f"{' vs '.join(m['separates'])})")
+        bias = ", ".join(f"{k} {percent(v)}" for k, v in a["bias"].items())
+        lines.append(f"absorbed: {in_words(a['effect'])} (typical strength) would bias {bias}")
+    d = result["discrepancy"]
+    if d["peak"]["phase"]:
+        lines.append(f"discrepancy: ln BF {d['log_bayes_factor']:.1f}, {d['shape']}, peak {d['peak']['mrad']:.3f} mrad "
+                     f"at {d['peak']['t_ms']:.1f} ms ({d['peak']['phase']})")
+    for nm in result["next_measurement"][:3]:
+        lines.append(f"next: {nm['measurement']} (expected ΔBIC {nm['expected_delta_bic']:.0f}, "
+                     f"{' vs '.join(nm['separates'])})")
     lines.append(f"runtime {result['runtime_s']:.1f} s")
     return "\n".join(lines)
 

@@ -22,7 +22,7 @@ from scipy.stats import chi2
 
 from ..mechanics.breaker import Breaker
 from ..mechanics.coordinates import operation_coordinate
-from .data import STATE, WindowData, model_curve, window_data
+from .data import BLOCK_S, STATE, WindowData, model_curve, window_data
 from .errors import DiagnosisError
 
 BASE_NFEV = 30      # polish of the reduced model (least_squares evaluations)
@@ -31,6 +31,7 @@ BASE_NFEV = 30      # polish of the reduced model (least_squares evaluations)
 # 10-20 ms), the same span about the estimator's delay.
 TAU_SPAN = (-2e-3, 5e-3)
 GAP_P = 1e-3        # a baseline whose χ² is this improbable is also polished from the design state
+MIN_BLOCKS = 20     # 2.5 ms of blocks: fewer cannot hold a state of 5-6 parameters and a test
 JAC_STEP = 1e-4     # relative finite-difference step of the state Jacobian
 
 
@@ -69,6 +70,11 @@ class Windows:
     def n(self) -> int:
         return int(sum(c.r.size for c in self.captures))
 
+    @property
+    def block(self) -> float:
+        """Mean samples per block over the captures (16 at 128 kHz, 1 at ≤ 8 kS/s)."""
+        return float(np.mean(np.concatenate([c.data.count for c in self.captures])))
+
 
 def prepare(captures, breaker: Breaker, operation: str, *, fitter=None, seed: int = 1) -> Windows:
     """Fit the reduced model to each capture and cut its window (see the module docstring)."""
@@ -92,9 +98,10 @@ def prepare(captures, breaker: Breaker, operation: str, *, fitter=None, seed: in
     datas, starts = [], []
     for cap, fr in fits:
         data = window_data(cap, fr, breaker, operation)
-        if data.t.size < 20:
-            raise DiagnosisError(f"{data.source}: the valid window holds only {data.t.size} blocks "
-                                 f"of {16} samples: too short to diagnose")
+        if data.t.size < MIN_BLOCKS:
+            raise DiagnosisError(f"{data.source}: the valid window lasts only "
+                                 f"{1e3 * (data.t[-1] - data.t[0]) if data.t.size else 0.0:.1f} ms: too short to "
+                                 f"diagnose (at least {1e3 * MIN_BLOCKS * BLOCK_S:.1f} ms)")
         datas.append(data)
         starts.append(np.array([fr.parameters.get(k, design[k]) for k in STATE[operation]] + [fr.onset_delay_s]))
     if operation == "open":

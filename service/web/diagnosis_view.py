@@ -104,7 +104,7 @@ def view(r: dict | None) -> dict | None:
     absorbed = []
     for a in r.get("absorbed") or []:
         if isinstance(a, dict):
-            bias = a.get("parameter_bias", a.get("parameter_shift"))
+            bias = a.get("bias", a.get("parameter_bias", a.get("parameter_shift")))
             absorbed.append({"effect": str(a.get("effect", "?")),
                              "bias": {str(k): _num(v) for k, v in bias.items()} if isinstance(bias, dict) else {}})
     gap = r.get("gap") if isinstance(r.get("gap"), dict) else {}

@@ -1,5 +1,6 @@
-"""Pure parts of the pipeline: the evidence's priors, the decision's size rule, the CLI's
-capture expansion, the group generators' interface."""
+"""Pure parts of the pipeline: the evidence (nested likelihood ratio, noise model), the
+discrepancy term, blocks in time, the calibration map, the CLI's capture expansion, the group
+generators' interface (the study's scoring: tests/studies/test_gap_scoring.py)."""
 
 import json
 from types import SimpleNamespace
@@ -7,66 +8,101 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from service.diagnosis.calibration import calibrate, load, renormalise
 from service.diagnosis.commands import expand
-from service.diagnosis.decision import MILD, gap_sigma
+from service.diagnosis.data import block_samples
+from service.diagnosis.decision import gap_sigma
+from service.diagnosis.discrepancy import KNOT_S, Discrepancy, basis
 from service.diagnosis.errors import DiagnosisError
-from service.diagnosis.evidence import evidence
-from service.diagnosis.hypotheses import HypothesisFit, spline_basis
+from service.diagnosis.evidence import evidence, lag1
+from service.diagnosis.hypotheses import HypothesisFit
 
 
-def _fits(chi, spread=None):
-    """Fake fits: each hypothesis's residual spreads its χ² evenly over 500 blocks (or puts
-    it all in the first 32 blocks when named in ``spread``)."""
-    caps = [SimpleNamespace(J=np.zeros((500, 5)))]
+def _disc(v, k=40, seed=0):
+    """A discrepancy term on residual ``v`` (one capture, whitened) with a k-column spline basis."""
+    t = np.linspace(0.0, 0.05, v.size)
+    B = basis(t, np.linspace(0.0, 0.05, k - 2)[1:-1])
+    return Discrepancy([B], [B.T @ B], [B.T @ v], [v], [None], [1.5e-3])
+
+
+def _fits(chi, v):
+    """Fake fits: hypotheses {name: (χ², k)} over 500 blocks; ``outside`` = the best catalogued
+    plus a discrepancy term on residual ``v``."""
+    caps = [SimpleNamespace(Q=np.zeros((500, 5)))]
     hyps = {}
     for name, (c, k) in chi.items():
-        eff = () if name in ("none",) else tuple(name.split("+")) if name != "outside_catalogue" else ("x",)
-        e = np.full(500, np.sqrt(c / 500))
-        if spread and name in spread:
-            e = np.full(500, np.sqrt(spread[name] / 500))
-            e[:32] = np.sqrt((e[:32] ** 2) + (c - spread[name]) / 32)
-        hyps[name] = HypothesisFit(eff, {}, k, c, [c], outside=name == "outside_catalogue", resid=[e])
+        eff = () if name == "none" else tuple(name.split("+"))
+        hyps[name] = HypothesisFit(eff, {}, k, c, [c])
+    best = min(hyps.values(), key=lambda h: h.chi2 + h.k * np.log(500))
+    d = _disc(v)
+    res = d.ls_residuals()
+    hyps["outside_catalogue"] = HypothesisFit(best.effects, {}, best.k + d.k, float(np.sum(res[0] ** 2)), [],
+                                              outside=True, discrepancy=d, base_k=best.k)
     return SimpleNamespace(windows=SimpleNamespace(n=500, captures=caps), hypotheses=hyps)
 
 
-def test_evidence_priors_and_bic():
-    f = _fits({"none": (520.0, 0), "a": (480.0, 2), "b": (500.0, 2), "a+b": (478.0, 4),
-               "outside_catalogue": (470.0, 10)})
+def test_evidence_is_the_nested_likelihood_ratio():
+    v = np.random.default_rng(1).normal(size=500)
+    f = _fits({"none": (540.0, 0), "a": (500.0, 2), "b": (520.0, 2), "a+b": (499.0, 4)}, v)
     ev = evidence(f)
     assert sum(ev.probabilities.values()) == pytest.approx(1.0)
     assert ev.prior["a+b"] == pytest.approx(ev.prior["a"] / 2)     # pair: 1/F of a single (F = 2)
     assert ev.prior["none"] == ev.prior["a"] == ev.prior["outside_catalogue"]
-    # evidence spread evenly over the units: the bootstrap leaves the BIC odds nearly unchanged
-    # (the last unit is shorter, which adds a little spread): a beats none by Δχ² 40 − 2 ln 500
-    # = 27.6 → ln odds 13.8
-    odds = ev.probabilities["a"] / ev.probabilities["none"]
-    assert np.log(odds) == pytest.approx(0.5 * (40 - 2 * np.log(500)), rel=0.02)
+    # ln odds a : none = ½(Δχ²/s² − k ln n_eff), s² the in-motion scale estimated from the residual
+    odds = np.log(ev.probabilities["a"] / ev.probabilities["none"])
+    assert odds == pytest.approx(0.5 * (40.0 / ev.s2 - 2 * np.log(ev.n_eff)), rel=1e-9)
+    assert 0.8 < ev.dispersion < 1.2 and ev.rho < 0.2     # white unit noise: φ ≈ 1, no AR inflation
+    # a noise residual: the discrepancy loses. Its cheapest form, one 8-column stretch, costs
+    # ≥ 0.1 nat a column (g ≥ 1: ½ln2 − ¼) and half the prior: odds ≤ ½e^-0.8 ≈ 0.22 by the
+    # penalty alone, and this residual's fluctuations make it e^-4 on one capture
+    assert ev.probabilities["outside_catalogue"] < 0.22 * ev.probabilities["a"]
+    assert ev.log_bf_discrepancy < -1.5
 
 
-def test_evidence_from_one_unit_is_tempered():
-    chi = {"none": (520.0, 0), "a": (480.0, 2), "outside_catalogue": (470.0, 10)}
-    even = evidence(_fits(chi))
-    local = evidence(_fits(chi, spread={"none": 480.0}))     # none's excess all in one 4 ms unit
-    assert local.probabilities["a"] < even.probabilities["a"]
-    assert local.probabilities["a"] > 0.5
+def test_ar1_noise_inflates_the_scale():
+    rng = np.random.default_rng(2)
+    e = rng.normal(size=600)
+    ar = np.empty_like(e)
+    ar[0] = e[0]
+    for i in range(1, e.size):
+        ar[i] = 0.6 * ar[i - 1] + np.sqrt(1 - 0.36) * e[i]
+    assert lag1([ar]) == pytest.approx(0.6, abs=0.1)
+    assert abs(lag1([e])) < 0.1
 
 
-def test_dispersion_tempers_a_misspecified_fit():
-    f = _fits({"none": (2000.0, 0), "a": (1500.0, 2), "outside_catalogue": (1000.0, 10)})
-    ev = evidence(f)
-    assert ev.dispersion == pytest.approx(1000.0 / (500 - 5 - 10))
+def test_discrepancy_sees_a_1ms_transient():
+    rng = np.random.default_rng(3)
+    t = np.linspace(0.0, 0.05, 400)                  # 8 kHz blocks over 50 ms
+    noise = rng.normal(size=t.size)
+    bump = 3.0 * np.exp(-0.5 * ((t - 0.02) / 0.5e-3) ** 2)     # a ~1 ms transient, 3 block sd high
+    k = int(0.05 / KNOT_S)
+    assert _disc(noise, k).log_bf(1.0) < -2.0        # noise only: no discrepancy (odds < 1:7 on one capture)
+    d = _disc(noise + bump, k)
+    assert d.log_bf(1.0) > 10.0
+    fit = d.posterior_fit(1.0)[0]
+    assert abs(t[int(np.argmax(np.abs(fit)))] - 0.02) < 1e-3     # and it says where
 
 
-def test_size_rule():
-    assert gap_sigma(500.0, 500) == 0.0
+def test_gap_sigma_in_time_blocks():
+    assert gap_sigma(500.0, 500, 16.0) == 0.0
     # a misfit of exactly one block-mean sd per sample: χ²/n = 1 + 16·(1/16)
-    assert gap_sigma(1000.0, 500) == pytest.approx(MILD)
+    assert gap_sigma(1000.0, 500, 16.0) == pytest.approx(0.25)
+    assert gap_sigma(1000.0, 500, 1.0) == pytest.approx(1.0)      # a 5 kS/s record: one sample a block
+    assert block_samples(128_000) == 16 and block_samples(5_000) == 1 and block_samples(64_000) == 8
 
 
-def test_spline_basis_partition_of_unity():
-    B = spline_basis(np.linspace(0.0, 0.05, 300))
-    assert B.shape == (300, 8)
-    assert np.allclose(B.sum(axis=1), 1.0)
+def test_calibration_map_and_one_story(tmp_path):
+    assert calibrate(0.93, str(tmp_path / "absent.json")) == (0.93, "identity")
+    p = tmp_path / "cal.json"
+    p.write_text(json.dumps({"method": "isotonic", "x": [0.0, 0.5, 1.0], "y": [0.0, 0.4, 0.9], "fitted_on": ["a"],
+                             "n": 20, "note": "test"}))
+    assert calibrate(0.75, str(p)) == (pytest.approx(0.65), "isotonic")
+    probs = renormalise({"a": 0.8, "b": 0.15, "none": 0.05}, "a", 0.6)
+    assert probs["a"] == 0.6 and sum(probs.values()) == pytest.approx(1.0)
+    assert probs["b"] / probs["none"] == pytest.approx(3.0)
+    p.write_text(json.dumps({"x": [0.5, 0.2], "y": [0.1, 0.2]}))
+    with pytest.raises(ValueError, match="x must ascend"):
+        load(str(p))
 
 
 def test_expand_dir_glob_and_errors(tmp_path):
