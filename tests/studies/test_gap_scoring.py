@@ -132,3 +132,15 @@ def test_summary_calibrates_held_out_prototypes_by_the_development_map(tmp_path)
     assert s["calibration"]["map_all_development"]["n"] == 30        # D's rows never enter the map
     assert "D calibrated on A+B+C" in (tmp_path / "gap.md").read_text()
     assert s["per_prototype"]["d"]["top1_all_single"]["n"] == 10
+
+
+def test_the_shipped_map_loads_in_the_diagnosis(tmp_path):
+    from service.diagnosis.calibration import calibrate
+    from service.studies.gap.calibration import write_shipped
+
+    rows = [row(["x"], "named", ["x"], p=1.0, raw=1.0, prototype=q) for q in "abc"]
+    rows.append(row(["x"], "named", ["y"], answer="y", p=1.0, raw=1.0, prototype="a"))
+    m = fit_map(rows)                                  # one raw value only: still two points
+    assert m["x"] == [0.0, 1.0] and m["y"] == [0.75, 0.75]
+    path = write_shipped(m, tmp_path / "calibration.json")
+    assert calibrate(1.0, str(path)) == (0.75, "isotonic")

@@ -37,9 +37,15 @@ def fit_map(rows) -> dict:
     x = np.array([raw_probability(r) for r in rows])
     y = np.array([float(right(r)) for r in rows])
     iso = IsotonicRegression(y_min=0.0, y_max=1.0, increasing=True, out_of_bounds="clip").fit(x, y)
+    xs, ys = [float(v) for v in iso.X_thresholds_], [float(v) for v in iso.y_thresholds_]
+    # anchored at 0 and 1 with the end values (what clipping gives anyway): the map then has two
+    # points even when every raw probability was the same
+    if xs[0] > 0.0:
+        xs, ys = [0.0] + xs, [ys[0]] + ys
+    if xs[-1] < 1.0:
+        xs, ys = xs + [1.0], ys + [ys[-1]]
     protos = sorted({r["prototype"] for r in rows})
-    return {"method": "isotonic", "x": [float(v) for v in iso.X_thresholds_],
-            "y": [float(v) for v in iso.y_thresholds_], "fitted_on": protos, "n": int(len(rows)),
+    return {"method": "isotonic", "x": xs, "y": ys, "fitted_on": protos, "n": int(len(rows)),
             "note": "isotonic regression of 'the answer was right' on the raw probability of the answer, "
                     f"fitted on {len(rows)} diagnosed groups of prototypes {', '.join(p.upper() for p in protos)} "
                     "(hvcb study gap; docs/gap-study.md); linear between the points, clipped outside"}

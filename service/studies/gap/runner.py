@@ -111,12 +111,19 @@ def write_jobs(out: Path, p: str, seed: int, sizes: dict) -> list:
 
 
 def run_gap_study(out_dir: Path, *, seed: int = DEFAULT_SEED, quick: bool = False, workers: int = 2,
-                  prototypes=None, sizes=None, ship_calibration: bool = False, with_rows=None) -> dict:
-    """Write the groups of each prototype, diagnose them and run the oracle (a pool of
-    ``workers``), score; ``ship_calibration``: also write the map fitted on every development
-    prototype run to ``service/diagnosis/calibration.json``. ``with_rows``: the
-    ``gap_groups.json`` of an earlier run whose rows are scored alongside (a held-out prototype
-    run alone is then calibrated by the development prototypes' map)."""
+                  prototypes=None, sizes=None, ship_calibration: bool = False, with_rows=None,
+                  resume: bool = True) -> dict:
+    """Write the groups of every prototype, diagnose them and run the oracle (a pool of
+    ``workers``), score.
+
+    The groups of all prototypes are diagnosed in one shuffled order and the summary is
+    rewritten every few groups, so a run stopped early has scored a sample of every prototype
+    and kind of group. ``resume``: groups already in ``out_dir``'s ``gap_groups.json`` from a run
+    of the same seed and sizes are not diagnosed again. ``ship_calibration``: also write the map
+    fitted on the development prototypes to ``service/diagnosis/calibration.json`` when the run
+    completes. ``with_rows``: the ``gap_groups.json`` of an earlier run whose rows are scored
+    alongside (a held-out prototype run alone is then calibrated by the development prototypes'
+    map)."""
     from ..common import pool_map
     from .report import summarise
 
@@ -126,26 +133,30 @@ def run_gap_study(out_dir: Path, *, seed: int = DEFAULT_SEED, quick: bool = Fals
     protos = list(prototypes or available_prototypes())
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     t0 = time.perf_counter()
-    rows, result = [], None
+    rows = []
+    saved = out / "gap_groups.json"
+    if resume and saved.exists():
+        prev = json.loads(saved.read_text())
+        if prev.get("seed") == seed and prev.get("sizes") == sizes:
+            rows = [r for r in prev["rows"] if r["prototype"] in protos]
+    jobs = []
+    for p in protos:
+        jobs += [j for j in write_jobs(out, p, seed, sizes)
+                 if not any(r["prototype"] == p and r["group"] == j["group"] for r in rows)]
     if with_rows is not None:
         earlier = json.loads(Path(with_rows).read_text())
-        rows = [r for r in earlier["rows"] if r["prototype"] not in protos]
+        rows += [r for r in earlier["rows"] if r["prototype"] not in protos]
         protos = [p for p in earlier["prototypes"] if p not in protos] + protos
-    todo = [q for q in protos if not any(r["prototype"] == q for r in rows)]
-    for p in todo:
-        jobs = write_jobs(out, p, seed, sizes)
-        # a shuffled order and a summary after every few groups: a run stopped early has scored a
-        # sample of every kind of group, not the first effects only
-        order = np.random.default_rng([seed, 29]).permutation(len(jobs))
-        jobs = [jobs[int(i)] for i in order]
-        step = CHUNK * max(1, int(workers))
-        for k in range(0, len(jobs), step):
-            rows += pool_map(diagnose_group, jobs[k:k + step], max(1, int(workers)))
-            last = p == todo[-1] and k + step >= len(jobs)
-            meta = {"seed": seed, "quick": quick, "sizes": sizes, "prototypes": protos, "workers": workers,
-                    "wall_s": time.perf_counter() - t0, "complete": last,
-                    "groups_done": {q: sum(r["prototype"] == q for r in rows) for q in protos}}
-            result = summarise(out, rows, meta, ship_calibration=ship_calibration and last)
+    jobs = [jobs[int(i)] for i in np.random.default_rng([seed, 29]).permutation(len(jobs))]
+    step = CHUNK * max(1, int(workers))
+    meta = {"seed": seed, "quick": quick, "sizes": sizes, "prototypes": protos, "workers": workers}
+    result = summarise(out, rows, {**meta, "complete": not jobs}) if rows else None
+    for k in range(0, len(jobs), step):
+        rows += pool_map(diagnose_group, jobs[k:k + step], max(1, int(workers)))
+        last = k + step >= len(jobs)
+        result = summarise(out, rows, {**meta, "wall_s": time.perf_counter() - t0, "complete": last,
+                                       "groups_done": {q: sum(r["prototype"] == q for r in rows) for q in protos}},
+                           ship_calibration=ship_calibration and last)
     return result
 
 
