@@ -2,8 +2,11 @@
 is the exact contract (docs/rest-api.md). 0 failures expected.
 
 The app runs under uvicorn on a loopback port on SQLite with the reference breaker, a demo-like
-history (40 fits, DO falling, the DO alarm raised) and its generated admin key, the only admin key; the CLI runs deterministically (no seed to vary, no
-example database), 30 examples per operation, every phase (coverage, fuzzing, stateful).
+history (40 fits, DO falling, the DO alarm raised) and its generated admin key, the only admin
+key; the CLI runs deterministically (no seed to vary, no example database), 30 examples per
+operation, every phase (coverage, fuzzing, stateful). Wrong keys are not throttled here (as in
+every service test; tests/security/test_d07_throttle.py tests the throttle): against `hvcb demo`
+schemathesis's wrong-key probes trip it (docs/rest-api.md, "The contract, tested").
 
 It must not lock itself out: revoking keys runs last, in a second run, after the admin keys the
 first run created are revoked again, so the fuzzing key is the last active admin key and every
