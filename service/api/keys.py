@@ -4,6 +4,7 @@ and its role compared with the one an operation needs (docs/security.md)."""
 from __future__ import annotations
 
 import asyncio
+import math
 import time
 from dataclasses import dataclass
 from typing import Annotated
@@ -80,8 +81,9 @@ async def authorise_key(request: Request, key: str | None, role: str, *, also: t
         if principal is None and wait > 0:
             # A blocked address learns nothing more than "wait"; a right key still gets in, so the
             # real admin behind the same NAT address as an attacker is never locked out.
-            raise HTTPException(429, f"too many wrong keys from this address: try again in {wait:.0f} s",
-                                headers={"Retry-After": str(max(1, round(wait)))})
+            retry = max(1, math.ceil(wait))  # whole seconds, rounded up: never "try again in 0 s"
+            raise HTTPException(429, f"too many wrong keys from this address: try again in {retry} s",
+                                headers={"Retry-After": str(retry)})
         if principal is None:
             delay = throttle.failed(address, "API keys")
             if delay:

@@ -277,7 +277,8 @@ def _upload_context(session, breaker_id: int, idempotency_key: str | None):
              tags=["operations"])
 async def upload_capture(breaker_id: BreakerId, request: Request, response: Response,
                          settings: SettingsDep, monitor: MonitorDep, who: UploaderDep,
-                         files: Annotated[list[UploadFile], File(min_length=1, description="a .cfg and its .dat, one .cff, or one .zip")],
+                         files: Annotated[list[UploadFile], File(
+                             min_length=1, description="a .cfg and its .dat, one .cff, or one .zip")],
                          # no `| None`: a form field cannot be null, only left out
                          operation: Annotated[Literal["open", "close"],
                                               Form(description="inferred from the travel when omitted")] = None,
