@@ -82,7 +82,9 @@ class Monitor:
         self._wake.set()
         if self._thread is not None:
             self._thread.join(timeout=10)
-        self.executor.shutdown(wait=True)
+        # A local pool's running fits end now (Ctrl-C stops the service within seconds, not a
+        # fit's time); recover() re-queues them at the next start. Others finish their job.
+        self.executor.shutdown(wait=getattr(self.executor, "kind", None) != "local")
 
     def recover(self) -> int:
         """Store spooled captures, then re-queue fits left queued or running. Returns jobs queued."""

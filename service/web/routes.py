@@ -169,7 +169,8 @@ def breaker_page(request: Request, breaker_id: Id, user: Reader,
                "last": crud_web.last_operation_times(session, breaker_id=b.id),
                "watched": dict(settings.drift_settings.watched), "nav": "fleet",
                "OPENING": OPENING, "CLOSING": CLOSING, "CHARACTERISTICS": CHARACTERISTICS,
-               "alarm_values": alarm_values(session, alarms)}
+               "alarm_values": alarm_values(session, alarms),
+               "shelved": [a for a in alarms if a not in annunciated(alarms, utcnow())]}
         from .routes_diagnoses import breaker_diagnosis_context
 
         ctx.update(breaker_diagnosis_context(request, session, b))

@@ -115,11 +115,17 @@ class LocalExecutor:
             return sum(1 for f in self._futures.values() if not f.done())
 
     def shutdown(self, *, wait: bool = True) -> None:
+        """``wait``: let the running fits finish; else end them now (their rows stay queued or
+        running, and ``Monitor.recover`` re-queues them at the next start)."""
         with self._lock:
             self._closed = True
             pool, self._pool = self._pool, None
-        if pool is not None:
-            pool.shutdown(wait=wait, cancel_futures=True)
+        if pool is None:
+            return
+        if wait:
+            pool.shutdown(wait=True, cancel_futures=True)
+        else:
+            pool.terminate_workers()
 
 
 class InlineExecutor:

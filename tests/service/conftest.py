@@ -30,8 +30,7 @@ def _reachable(url: str, default_port: int) -> str | None:
 def pg_server():
     """A fresh PostgreSQL database for this test session, dropped at the end."""
     if not PG_URL:
-        pytest.skip("PostgreSQL lane off: set HVCB_TEST_POSTGRES_URL, e.g. "
-                    "postgresql+psycopg://postgres@127.0.0.1:5432/test")
+        pytest.skip("PostgreSQL lane off: HVCB_TEST_POSTGRES_URL is empty (unset, it is 127.0.0.1:5432/test)")
     why = _reachable(PG_URL, 5432)
     if why:
         pytest.skip(f"PostgreSQL lane off: {why}")

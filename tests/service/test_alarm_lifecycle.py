@@ -279,6 +279,9 @@ def test_a_shelved_alarm_leaves_the_fleet_status_scada_and_iec61850_until_it_uns
     fleet = env.client.get("/").text
     assert "DO alarm shelved until" in fleet or "DO warning shelved until" in fleet
     assert '<span class="muted">none</span>' not in fleet  # not "no alarm" while one is shelved
+    assert "by test-operator" in fleet  # the page says until when and by whom
+    page = env.client.get("/breakers/1").text
+    assert 'data-shelved="DO"' in page and "by test-operator: crew on site" in page
     assert [x["id"] for x in _active(env)] == [a["id"]]  # still on the alarm list
     assert env.client.post(f"/api/v1/alarms/{a['id']}/unshelve", headers=env.h("operator")).status_code == 200
     assert announced() == (level, status, iec)

@@ -39,7 +39,7 @@ ROOT = HERE.parents[1]
 
 def _redis_or_skip():
     if not REDIS_URL:
-        pytest.skip("Celery lane off: set HVCB_TEST_REDIS_URL, e.g. redis://127.0.0.1:6379/0")
+        pytest.skip("Celery lane off: HVCB_TEST_REDIS_URL is empty (unset, it is redis://127.0.0.1:6379/0)")
     import redis
 
     try:

@@ -14,8 +14,7 @@ PG_URL = os.environ.get("HVCB_TEST_POSTGRES_URL")
 
 def _pg_skip_reason() -> str | None:
     if not PG_URL:
-        return ("PostgreSQL lane off: set HVCB_TEST_POSTGRES_URL, e.g. "
-                "postgresql+psycopg://postgres@127.0.0.1:5432/test_mine")
+        return "PostgreSQL lane off: HVCB_TEST_POSTGRES_URL is empty (unset, it is 127.0.0.1:5432/test)"
     why = unreachable(PG_URL)
     return f"PostgreSQL lane off: {why}" if why else None
 
