@@ -6,40 +6,21 @@ from __future__ import annotations
 
 from datetime import datetime, timedelta, timezone
 
-import numpy as np
 import pytest
+
+from tests.fit_rows import store_leak
 
 from .weblive import PageLog, canvas_ink, screenshot, sign_in, start_server
 
 VIEWPORT = {"width": 1400, "height": 1000}
 
 
-def _leak(app, n: int = 32, start: int = 25):
-    from service.jobs.fit import update_drift
-    from service.storage import crud
-
-    rng = np.random.default_rng(3)
-    t0 = datetime.now(timezone.utc) - timedelta(days=n)
-    settings = app.app.state.settings.drift_settings
-    for i in range(n):
-        do = 39.5 * (1 + rng.normal(0, 0.003)) * (0.98 ** max(0, i - start))
-        with app.Session() as s, s.begin():
-            op, _ = crud.create_operation(s, capture_key=f"p{i}", breaker_id=1, kind="open",
-                                          occurred_at=t0 + timedelta(days=i), source="replay",
-                                          capture_path="/nonexistent.csv", capture_sha256="0" * 64, flags=[],
-                                          sample_rate=1.0, n_samples=1)
-            crud.claim_fit(s, operation_id=op.id, worker="test")
-            crud.store_fit_result(s, operation_id=op.id, curve=None, result={
-                "parameters": {"AO": 3424.0, "BO": 4806.0 * (1 + rng.normal(0, 0.002)), "DO": do, "EO": 3950.0},
-                "ci95": {"DO": [do - 0.3, do + 0.3], "BO": [4790.0, 4822.0]}, "identifiable": True})
-            update_drift(s, breaker_id=1, settings=settings)
-
-
 @pytest.fixture(scope="module")
 def live(tmp_path_factory, browser):
     app, stop = start_server(tmp_path_factory.mktemp("web-prognosis"), alarms={"baseline_n": 20})
     try:
-        _leak(app)
+        store_leak(app.Session, app.app.state.settings.drift_settings,
+                   t0=datetime.now(timezone.utc) - timedelta(days=32), step=timedelta(days=1))
         yield app
     finally:
         stop()
