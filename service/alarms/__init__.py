@@ -7,8 +7,9 @@ Pure: the service persists ``DriftState.to_dict()`` per (breaker, parameter) and
 from service.alarms.actions import (acknowledge, health_status, observations_from_fit, replay,
                                     reset_baseline)
 from service.alarms.baseline import Model, fit_model
-from service.alarms.drift import (AlarmEvent, Baseline, DriftState, FitObservation, check_temperature,
-                                  normal_score, t_for_score, update)
+from service.alarms.drift import normal_score, t_for_score, update
+from service.alarms.observation import AlarmEvent, FitObservation, check_temperature
+from service.alarms.state import Baseline, DriftState
 from service.alarms.settings import DEFAULT_WATCHED, DIRECTIONS, DriftSettings
 
 __all__ = [

@@ -7,8 +7,10 @@ from dataclasses import replace
 from datetime import datetime
 from typing import Any, Iterable, Mapping
 
-from service.alarms.drift import AlarmEvent, DriftState, FitObservation, update
+from service.alarms.drift import update
+from service.alarms.observation import AlarmEvent, FitObservation
 from service.alarms.settings import DriftSettings
+from service.alarms.state import DriftState
 
 
 def replay(history: Iterable[FitObservation], settings: DriftSettings, *, parameter: str,

@@ -21,280 +21,19 @@ known-parameter run length (design.py) is the run length of this breaker too.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, replace
-from datetime import datetime, timezone
-from typing import Any, Mapping
+from dataclasses import replace
+from typing import Any
 
 from scipy import special
 
 from service.alarms.baseline import Model, fit_model, screen
+from service.alarms.observation import (TEMPERATURE_RANGE_C, Z95, AlarmEvent, FitObservation,  # noqa: F401
+                                        check_temperature, utc_text)
 from service.alarms.settings import DriftSettings
+from service.alarms.state import LEVELS, STATE_VERSION, Baseline, DriftState  # noqa: F401
 
-Z95 = 1.959963984540054  # two-sided 95 % normal quantile: CI half-width = Z95 * stderr
-LEVELS = ("none", "warning", "alarm")
-STATE_VERSION = 2
-# Plausible temperature of a breaker mechanism [C]: outside this a reading is a sensor fault.
-TEMPERATURE_RANGE_C = (-60.0, 100.0)
 # A temperature this far outside a frozen window's range is new to it [K]: the daily swing.
 NEW_TEMPERATURE_K = 6.0
-
-
-def _utc_text(t: datetime) -> str:
-    return t.astimezone(timezone.utc).isoformat().replace("+00:00", "Z")
-
-
-def _finite(name: str, value: Any) -> float:
-    try:
-        out = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number, got {value!r}") from None
-    if not math.isfinite(out):
-        raise ValueError(f"{name} must be finite, got {value!r}")
-    return out
-
-
-def check_temperature(value: Any, where: str = "temperature_c") -> float | None:
-    """A temperature [C] checked for sense, or None; ValueError in words otherwise."""
-    if value is None:
-        return None
-    t = _finite(where, value)
-    lo, hi = TEMPERATURE_RANGE_C
-    if not lo <= t <= hi:
-        raise ValueError(f"{where} {t:g} C is outside {lo:g}..{hi:g} C (a sensor fault, or not Celsius)")
-    return t
-
-
-@dataclass(frozen=True)
-class FitObservation:
-    """One good fit of one watched parameter.
-
-    operation_id : int | str — the operation the fit belongs to
-    time : datetime — time of the operation, timezone-aware
-    value : float — fitted value [unit of the parameter, e.g. DO s^-1, BO s^-2]
-    ci95 : (lo, hi) | None — 95 % confidence interval of the fit [same unit]
-    stderr : float | None — standard error of the fit [same unit]; used when ci95 is None.
-        With neither, the fit's own uncertainty counts as zero.
-    temperature : float | None — ambient or mechanism temperature of the operation [C]
-    """
-
-    operation_id: int | str
-    time: datetime
-    value: float
-    ci95: tuple[float, float] | None = None
-    stderr: float | None = None
-    temperature: float | None = None
-
-    def __post_init__(self) -> None:
-        if not isinstance(self.time, datetime) or self.time.tzinfo is None:
-            raise ValueError(f"fit time must be a timezone-aware datetime, got {self.time!r}")
-        object.__setattr__(self, "value", _finite("fitted value", self.value))
-        if self.ci95 is not None:
-            lo, hi = (_finite("ci95 bound", b) for b in self.ci95)
-            if hi < lo:
-                raise ValueError(f"ci95 has negative width: ({lo}, {hi})")
-            object.__setattr__(self, "ci95", (lo, hi))
-        if self.stderr is not None:
-            se = _finite("stderr", self.stderr)
-            if se < 0:
-                raise ValueError(f"stderr must be >= 0, got {se}")
-            object.__setattr__(self, "stderr", se)
-        object.__setattr__(self, "temperature", check_temperature(self.temperature, "temperature"))
-
-    @property
-    def se(self) -> float:
-        """Standard error of the fitted value [unit of the parameter]."""
-        if self.ci95 is not None:
-            return (self.ci95[1] - self.ci95[0]) / (2.0 * Z95)
-        return self.stderr or 0.0
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"operation_id": self.operation_id, "time": _utc_text(self.time),
-                "value": self.value, "ci95": list(self.ci95) if self.ci95 else None,
-                "stderr": self.se, "temperature": self.temperature}
-
-
-@dataclass(frozen=True)
-class Baseline:
-    """Summary of a breaker's learnt baseline of one parameter (for evidence and the page).
-
-    mean, sd : expected value (at the window's mean temperature) and run-to-run sd [unit]
-    n : fits in the window; operation_ids: the window's fits; excluded_ids: screened out
-    slope : temperature slope [unit/K] (0 without compensation); t_mean, t_span [C, K]
-    compensated : the model uses temperature; frozen : the window has stopped learning
-    """
-
-    mean: float
-    sd: float
-    n: int
-    operation_ids: tuple
-    excluded_ids: tuple = ()
-    slope: float = 0.0
-    slope_sd: float = 0.0
-    t_mean: float | None = None
-    t_span: float = 0.0
-    compensated: bool = False
-    frozen: bool = False
-
-    def to_dict(self) -> dict[str, Any]:
-        out = asdict(self)
-        out["operation_ids"] = list(self.operation_ids)
-        out["excluded_operation_ids"] = list(out.pop("excluded_ids"))
-        return out
-
-
-@dataclass(frozen=True)
-class AlarmEvent:
-    """A change of an alarm, for the service to store.
-
-    kind : "raised" | "escalated" | "acknowledged" | "cleared"
-    level : "warning" | "alarm" — the level after the event (for "cleared", the level it had)
-    episode : int — numbers the alarms of one DriftState; events of one alarm share it
-    evidence : JSON-able dict (baseline, current estimate and CI, statistic, operation ids)
-    """
-
-    kind: str
-    parameter: str
-    level: str
-    episode: int
-    operation_id: int | str | None
-    time: datetime
-    evidence: dict[str, Any]
-    reason: str = ""
-
-    def to_dict(self) -> dict[str, Any]:
-        out = asdict(self)
-        out["time"] = _utc_text(self.time)
-        return out
-
-
-@dataclass(frozen=True)
-class DriftState:
-    """Detector state of one watched parameter of one breaker; persist it with ``to_dict``.
-
-    phase : "baseline" while the first ``baseline_n`` good fits are collected, then "monitoring"
-    collected : ((operation_id, value, temperature, se), ...) while in the baseline phase
-    window : the baseline's fits, same tuples (values winsorised); model : its predictive model
-    frozen : the window has stopped learning
-    s_rising, s_falling : the two one-sided CUSUMs [z]
-    run_rising, run_falling : operation ids since each CUSUM last left zero (newest last)
-    level : "none" | "warning" | "alarm"; episode: number of the current or last alarm
-    """
-
-    parameter: str
-    phase: str = "baseline"
-    collected: tuple = ()
-    window: tuple = ()
-    excluded_ids: tuple = ()
-    model: Model | None = None
-    frozen: bool = False
-    s_rising: float = 0.0
-    s_falling: float = 0.0
-    run_rising: tuple = ()
-    run_falling: tuple = ()
-    run_length_rising: int = 0
-    run_length_falling: int = 0
-    level: str = "none"
-    acknowledged: bool = False
-    acknowledged_by: str | None = None
-    acknowledged_at: datetime | None = None
-    below_count: int = 0
-    episode: int = 0
-    last_operation_id: int | str | None = None
-    last_time: datetime | None = None
-    last_z: float | None = None
-    last_score: float | None = None
-    last_expected: float | None = None
-    last_band: float | None = None
-    held: tuple | None = None  # (operation_id, score): an unsupported extreme fit, on hold
-    outliers_ignored: int = 0
-    fits_monitored: int = 0
-
-    @classmethod
-    def new(cls, parameter: str, settings: DriftSettings) -> "DriftState":
-        """Fresh state: the next ``settings.baseline_n`` good fits form the baseline."""
-        settings.direction(parameter)  # refuse unwatched parameters early
-        return cls(parameter=parameter)
-
-    @property
-    def statistic(self) -> float:
-        """The larger of the two CUSUMs [z] (only the watched sides ever leave zero)."""
-        return max(self.s_rising, self.s_falling)
-
-    @property
-    def active(self) -> bool:
-        return self.level != "none"
-
-    @property
-    def compensated(self) -> bool:
-        """The baseline model uses the temperature."""
-        return self.model is not None and self.model.compensated
-
-    @property
-    def baseline(self) -> Baseline | None:
-        m = self.model
-        if m is None:
-            return None
-        return Baseline(mean=m.centre, sd=m.sd, n=m.n, operation_ids=tuple(w[0] for w in self.window),
-                        excluded_ids=self.excluded_ids, slope=m.slope, slope_sd=math.sqrt(m.slope_var),
-                        t_mean=m.t_mean, t_span=m.t_span, compensated=m.compensated, frozen=self.frozen)
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-able dict (no NaN); ``DriftState.from_dict`` is its inverse."""
-        out = {f: getattr(self, f) for f in self.__dataclass_fields__}
-        out["version"] = STATE_VERSION
-        for key in ("collected", "window"):
-            out[key] = [list(c) for c in out[key]]
-        out["excluded_ids"] = list(self.excluded_ids)
-        out["model"] = self.model.to_dict() if self.model else None
-        # The summary, for readers of the stored state (retention keeps these operations' captures).
-        out["baseline"] = self.baseline.to_dict() if self.model else None
-        out["run_rising"] = list(self.run_rising)
-        out["run_falling"] = list(self.run_falling)
-        out["held"] = list(self.held) if self.held is not None else None
-        for key in ("acknowledged_at", "last_time"):
-            out[key] = _utc_text(out[key]) if out[key] else None
-        return out
-
-    @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> "DriftState":
-        if data.get("version") == 1:
-            data = _from_version_1(data)
-        if data.get("version") != STATE_VERSION:
-            raise ValueError(f"drift state version {data.get('version')!r} is not supported "
-                             f"(expected {STATE_VERSION}); reset the baseline or replay the history")
-        d = {k: v for k, v in data.items() if k not in ("version", "baseline")}
-        for key in ("collected", "window"):
-            d[key] = tuple(tuple(c) for c in d.get(key, ()))
-        d["excluded_ids"] = tuple(d.get("excluded_ids", ()))
-        d["model"] = Model.from_dict(d["model"]) if d.get("model") else None
-        d["run_rising"] = tuple(d.get("run_rising", ()))
-        d["run_falling"] = tuple(d.get("run_falling", ()))
-        d["held"] = tuple(d["held"]) if d.get("held") is not None else None
-        for key in ("acknowledged_at", "last_time"):
-            if d.get(key):
-                d[key] = datetime.fromisoformat(d[key])
-        unknown = set(d) - set(cls.__dataclass_fields__)
-        if unknown:
-            raise ValueError(f"unknown drift state fields: {', '.join(sorted(unknown))}")
-        return cls(**d)
-
-
-def _from_version_1(data: Mapping[str, Any]) -> dict[str, Any]:
-    """A state of the frozen-20-fit detector (version 1) as a version-2 state: its baseline
-    stays frozen (v1 kept only mean, sd and n, not the fits to learn from) and its CUSUM, level
-    and episode carry on, so stored alarms stay in step. A baseline reset starts the learning
-    baseline."""
-    d = {k: v for k, v in data.items() if k not in ("baseline", "version")}
-    b = data.get("baseline")
-    d["version"] = STATE_VERSION
-    d["collected"] = [[c[0], c[1], None, 0.0] for c in data.get("collected", ())]
-    if b is not None:
-        d["model"] = Model(n=int(b["n"]), dof=max(int(b["n"]) - 1, 1), centre=float(b["mean"]),
-                           slope=0.0, slope_var=0.0, sd=float(b["sd"]), se2_mean=0.0).to_dict()
-        d["window"] = [[i, float(b["mean"]), None, 0.0] for i in b.get("operation_ids", ())]
-        d["excluded_ids"] = list(b.get("excluded_operation_ids", ()))
-        d["frozen"] = True
-    return d
 
 
 def normal_score(z: float, dof: int) -> float:
@@ -386,8 +125,8 @@ def update(state: DriftState, obs: FitObservation,
     if state.last_operation_id is not None and obs.operation_id == state.last_operation_id:
         return state, []
     if state.last_time is not None and obs.time < state.last_time:
-        raise ValueError(f"fit of operation {obs.operation_id} ({_utc_text(obs.time)}) is older "
-                         f"than the last one ({_utc_text(state.last_time)}); replay the history")
+        raise ValueError(f"fit of operation {obs.operation_id} ({utc_text(obs.time)}) is older "
+                         f"than the last one ({utc_text(state.last_time)}); replay the history")
     state = replace(state, last_operation_id=obs.operation_id, last_time=obs.time)
     entry = (obs.operation_id, obs.value, obs.temperature, obs.se)
 
@@ -497,15 +236,3 @@ def _step_level(state: DriftState, obs: FitObservation, z: float,
     state = replace(state, level="none", below_count=0)
     return state, [event("cleared", state, level,
                          f"CUSUM below {settings.clear_level} for {below} consecutive fits")]
-
-
-_MOVED = ("acknowledge", "reset_baseline", "health_status", "replay", "observations_from_fit")
-
-
-def __getattr__(name: str):
-    """The lifecycle helpers live in actions.py; ``drift.replay`` etc. keep working."""
-    if name in _MOVED:
-        from service.alarms import actions
-
-        return getattr(actions, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -3,7 +3,6 @@ crosses its maintenance limit, with 5/50/95 % quantiles (docs/prognosis.md)."""
 
 from __future__ import annotations
 
-from datetime import datetime
 from typing import Annotated
 
 from fastapi import APIRouter, Path as PathParam

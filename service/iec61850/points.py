@@ -285,11 +285,11 @@ def operating_time_level(history: Iterable[tuple], settings) -> str:
     settings as the mechanism parameters: a baseline of the first ``baseline_n`` fits, then
     warning/alarm when the time drifts either way.
     """
-    from service.alarms import drift
+    from service.alarms import FitObservation, replay
 
-    obs = [drift.FitObservation(operation_id=i, time=t, value=v) for i, t, v in history]
+    obs = [FitObservation(operation_id=i, time=t, value=v) for i, t, v in history]
     local = settings.__class__.from_mapping({**settings.to_dict(), "watched": {"OpTm": "both"}})
-    state, _ = drift.replay(obs, local, parameter="OpTm")
+    state, _ = replay(obs, local, parameter="OpTm")
     return state.level
 
 

@@ -303,24 +303,24 @@ def _message(event) -> str:
 
 def acknowledge_drift(session, *, alarm: AlarmRow, by: str, settings) -> None:
     """Keep the detector's state in step with an acknowledgement made through the API."""
-    from service.alarms import drift
+    from service.alarms import actions
 
     row, state = _drift_state(session, alarm.breaker_id, alarm.parameter, settings)
     if row is not None and state.active and state.episode == alarm.episode:
-        state, _ = drift.acknowledge(state, by=by, time=utcnow())
+        state, _ = actions.acknowledge(state, by=by, time=utcnow())
         _save_state(session, row, alarm.breaker_id, state)
 
 
 def reset_baseline(session, *, breaker_id: int, by: str, settings) -> int:
     """Admin: the next good fits form a new baseline; active alarms of the breaker are cleared."""
-    from service.alarms import drift
+    from service.alarms import actions
 
     session.execute(select(BreakerRow.id).where(BreakerRow.id == breaker_id).with_for_update())
     now = utcnow()
     cleared = 0
     for parameter in settings.watched:
         row, state = _drift_state(session, breaker_id, parameter, settings)
-        state, events = drift.reset_baseline(state, by=by, time=now)
+        state, events = actions.reset_baseline(state, by=by, time=now)
         for ev in events:
             if apply_alarm_event(session, breaker_id=breaker_id, event=ev) is not None:
                 cleared += 1
@@ -334,11 +334,11 @@ def reset_baseline(session, *, breaker_id: int, by: str, settings) -> int:
 
 
 def drift_status(session, *, breaker_id: int, settings) -> str:
-    from service.alarms import drift
+    from service.alarms import actions
     from service.storage.crud_alarms import shelved_parameters
 
     states = [_drift_state(session, breaker_id, p, settings)[1] for p in settings.watched]
-    return drift.health_status(states, shelved_parameters(session, breaker_id=breaker_id, now=utcnow()))
+    return actions.health_status(states, shelved_parameters(session, breaker_id=breaker_id, now=utcnow()))
 
 
 def fit_row_summary(fit: FitRow | None) -> dict | None:

@@ -55,7 +55,10 @@ def breaker_prognoses(session, *, breaker: BreakerRow, settings, horizon_years: 
             continue
         row = session.get(DriftStateRow, (breaker.id, parameter))
         state = DriftState.from_dict(row.state) if row is not None and row.state else DriftState.new(parameter, settings)
-        out.append(prognose(state, _history(session, breaker, parameter), limit, horizon_years=horizon_years))
+        try:
+            out.append(prognose(state, _history(session, breaker, parameter), limit, horizon_years=horizon_years))
+        except ValueError as exc:  # e.g. a non-positive baseline for a relative limit: say so, not a 500
+            out.append(Prognosis(parameter, None, None, limit.describe(), status="no trend", reason=str(exc)))
     return sorted(out, key=soonest_key)
 
 

@@ -25,7 +25,8 @@ from typing import Sequence
 import numpy as np
 from scipy import stats
 
-from service.alarms.drift import DriftState, FitObservation
+from service.alarms.observation import FitObservation
+from service.alarms.state import DriftState
 from service.breaker_limits import ParameterLimit
 from service.prognosis.trend import Trend, fit_trend
 

@@ -76,6 +76,9 @@ def mount_web(app: FastAPI) -> None:
     from .routes_alarms import router as alarm_router
 
     app.include_router(alarm_router)
+    from .routes_prognosis import router as prognosis_router  # the breaker page's fan chart data
+
+    app.include_router(prognosis_router)
     app.mount("/static", StaticFiles(directory=HERE / "static"), name="static")
 
     @app.exception_handler(auth.WebAuthError)

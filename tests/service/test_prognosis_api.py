@@ -2,17 +2,21 @@
 
 from __future__ import annotations
 
+from datetime import datetime, timedelta, timezone
+
 import pytest
 from sqlalchemy import select
 
 from service.storage.models import BreakerRow, PrognosisRow
-from test_alarm_lifecycle import _leak
+from tests.fit_rows import store_leak
 
 URL = "/api/v1/breakers/{}/prognosis"
 
 
 def test_leaking_breaker_gets_a_prognosis_with_quantiles(env):
-    _leak(env, n=32, start=25)  # DO falls 2 %/op from op 25; 25 % below baseline near op 39
+    # DO falls 2 %/op from op 25, one a second: 25 % below baseline near op 39
+    store_leak(env.Session, env.settings.drift_settings, t0=datetime.now(timezone.utc) - timedelta(hours=2),
+               step=timedelta(seconds=1))
     r = env.client.get(URL.format("reference-252kV"), headers=env.h("reader"))
     assert r.status_code == 200, r.text
     body = r.json()

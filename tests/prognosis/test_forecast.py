@@ -1,0 +1,76 @@
+"""The prognosis of one parameter from the detector's state (service.prognosis.forecast)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from datetime import datetime, timedelta, timezone
+
+import numpy as np
+
+from service.alarms import DriftSettings, DriftState, FitObservation, update
+from service.breaker_limits import ParameterLimit
+from service.prognosis import prognose
+
+T0 = datetime(2025, 1, 1, tzinfo=timezone.utc)
+LIMIT = ParameterLimit(min_change=-0.25)
+
+
+def history(n: int, *, leak_from: int | None = None, rate: float = 0.01, seed: int = 1, temps=None):
+    rng = np.random.default_rng(seed)
+    out = []
+    for i in range(n):
+        f = 1.0 - (rate * max(0, i - leak_from) if leak_from is not None else 0.0)
+        t = None if temps is None else float(temps[i])
+        tf = 1.0 if t is None else 1.0 - 0.004 * (t - 20.0)
+        v = 39.5 * f * tf * (1 + 0.01 * rng.standard_normal())
+        out.append(FitObservation(operation_id=i + 1, time=T0 + timedelta(days=i), value=v,
+                                  ci95=(v - 0.4, v + 0.4), temperature=t))
+    return out
+
+
+def detector(obs):
+    settings, state = DriftSettings(), DriftState.new("DO", DriftSettings())
+    for o in obs:
+        state, _ = update(state, o, settings)
+    return state
+
+
+def test_learning_baseline_gives_no_trend_with_reason():
+    obs = history(10)
+    p = prognose(detector(obs), obs, LIMIT)
+    assert p.status == "no trend" and "learning the baseline" in p.reason and p.operations_to_limit is None
+
+
+def test_healthy_breaker_has_no_crossing_within_ten_years_and_a_rate():
+    obs = history(300)
+    p = prognose(detector(obs), obs, LIMIT)
+    assert p.status == "ok" and p.basis == "baseline reset" and p.operations_to_limit is None
+    assert p.date_to_limit is None and abs(p.rate_per_day - 1.0) < 1e-9
+    assert p.horizon_operations == 3652.5 and p.probability_within_horizon < 0.5
+
+
+def test_leak_gives_quantiles_around_the_truth_and_dates_from_the_rate():
+    obs = history(120, leak_from=100)  # -1 %/op: 25 % down at op 126
+    p = prognose(detector(obs), obs, LIMIT)
+    q, d = p.operations_to_limit, p.date_to_limit
+    assert p.basis == "change point" and q.p05 < q.median < q.p95
+    assert q.p05 <= 126 - 120 <= q.p95
+    assert d.median == obs[-1].time + timedelta(days=q.median)
+    assert p.fan["median"][0] > p.fan["median"][-1]  # the projection falls
+
+
+def test_temperature_of_the_last_operation_does_not_move_the_prognosis():
+    """Two breakers alike but for the last opening's temperature (and so its raw value): the
+    compensated prognosis is the same to within the slope's own uncertainty."""
+    rng = np.random.default_rng(7)
+    temps = 5.0 + 15.0 * np.sin(np.arange(140) / 20.0) + rng.normal(0, 2, 140)
+    obs = history(140, leak_from=120, temps=temps)
+    state = detector(obs)
+    base = prognose(state, obs, LIMIT)
+    last = obs[-1]
+    hot_t = last.temperature + 25.0
+    hot_v = last.value * (1 - 0.004 * (hot_t - 20.0)) / (1 - 0.004 * (last.temperature - 20.0))
+    hot = obs[:-1] + [replace(last, temperature=hot_t, value=hot_v, ci95=(hot_v - 0.4, hot_v + 0.4))]
+    moved = prognose(state, hot, LIMIT)
+    assert abs(moved.operations_to_limit.median - base.operations_to_limit.median) < 0.1 * base.operations_to_limit.median
+    assert abs(moved.current - base.current) < 0.01 * base.current
