@@ -138,7 +138,7 @@ class PairSetting:
         df, step = self.friction_model
         X = np.asarray(X, float)
         k, _ = self.infer(X)
-        j = PAIR_PARAMETERS.index("CC")
+        j = X.shape[1] - 1  # the closing's CC is the last input (PAIR_PARAMETERS)
         resid = X[:, j] - self.mu0_[j] - k * self.s_[j]
         return resid / (df * self.s_[j] / step)
 

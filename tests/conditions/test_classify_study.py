@@ -132,9 +132,13 @@ def test_pair_setting_reads_the_setting_through_a_friction_that_moves_two_parame
     y = np.repeat(np.arange(5), 40)
     f = rng.uniform(-1, 1, y.size)  # friction: one step's worth, opposite signs in the two columns
     X = np.column_stack([y - 1.5 * f, y + 4.0 * f]) * 150.0 + rng.normal(0, 5, (y.size, 2))
-    model = PairSetting().fit(X, y)
+    # The design's dCC/df is 600 per unit f and its step 150: the fitted step says the "fit" reads
+    # CC at 1.2 times its change, so the friction is scaled back by that response.
+    X[:, 1] *= 1.2
+    model = PairSetting(friction=(600.0, 150.0)).fit(X, y)
     k, sd = model.infer(X)
     assert np.mean(model.predict(X) == y) == 1.0 and np.all(sd < 0.1)
     assert np.std(k - y) == pytest.approx(sd[0], rel=0.3)
+    assert np.std(model.friction(X) - (f - f.mean())) < 0.05
     one = PairSetting().fit(X[:, :1], y)  # one column alone: the friction is not separable
     assert np.mean(one.predict(X[:, :1]) == y) < 0.8
