@@ -36,10 +36,10 @@ def classification_spec(seed: int = DEFAULT_SEED, quick: bool = False, *, unit: 
                         **changes) -> DatasetSpec:
     """The Table 9 dataset of one unit: five opening conditions × 40 captures (quick: 3 × 6),
     every capture with the field nuisance; ``changes`` override single fields (sweeps)."""
-    fields = dict(FIELD_NUISANCE, **UNIT_TOLERANCE, unit=unit)
+    fields = dict(FIELD_NUISANCE, **UNIT_TOLERANCE, unit=unit, operation="open",
+                  conditions=3 if quick else 5, per_condition=6 if quick else 40, seed=seed)
     fields.update(changes)
-    return DatasetSpec(operation="open", conditions=3 if quick else 5,
-                       per_condition=6 if quick else 40, seed=seed, **fields)
+    return DatasetSpec(**fields)
 
 
 def clean_spec(seed: int = DEFAULT_SEED, quick: bool = False) -> DatasetSpec:

@@ -34,7 +34,12 @@ from .common import DEFAULT_WORKERS, load_reference, pool_map
 STEP_M = 3.5e-3            # pre-compression added per condition: two turns of the plate nut [m]
 FEATURE_WINDOW_S = 0.085   # raw-travel window the baselines see, from the first sample [s]
 FEATURE_POINTS = 256       # resampled length of that window [-]
+SETTLED_S = 0.005          # a closing's last 5 ms: on its stop (the record runs 15 ms past the motion)
 NOISE_RAD = 0.0015         # DAQ travel noise of the paper's sensor [rad]
+# A pair's closing fit searches CC up to this multiple of the top setting's design CC: friction
+# +10 % of TCf (+6 % of CC), the closing fit's bias on the prototype (+10 %, conditions.json) and
+# a unit's ±3 % J2 compound to +20 %; the breaker file's 12000 s^-2 would clip them.
+PAIR_CC_HEADROOM = 1.25
 
 
 @dataclass(frozen=True)
@@ -78,6 +83,13 @@ class DatasetSpec:
         Half-width of the uniform manufacturing spread of kO, J2 and cb for units other than 1 [-].
     alpha0_tolerance_rad : float
         Half-width of the uniform spread of the buffer engagement angle α0 for those units [rad].
+    pair : bool
+        Close–open pairs (issue 32): the setting is the opening spring's nut, which raises both
+        xO0 and xO1 by ``k·STEP_M``; the run state (one friction factor on TOf and TCf, one
+        buffer-damping factor) is drawn from a stream shared by the closing and the opening of
+        run ``index``, so the two specs that differ only in ``operation`` make the two halves
+        of one pair. The fit gets the design breaker (the setting is what is inferred) and,
+        for closings, the design DC.
     """
 
     operation: str = "open"
@@ -97,6 +109,7 @@ class DatasetSpec:
     unit: int = 1
     tolerance: float = 0.0
     alpha0_tolerance_rad: float = 0.0
+    pair: bool = False
 
     @property
     def field_nuisance(self) -> bool:
@@ -111,6 +124,8 @@ class DatasetSpec:
         """Short hash of the spec and the prototype's realistic strengths (cache file name)."""
         payload = dict(dataclasses.asdict(self), effects=dict(_effects(self).to_dict())
                        if self.source == "prototype" else None)
+        if not self.pair:  # the single-operation sets keep their cache names
+            payload.pop("pair")
         return hashlib.sha1(json.dumps(payload, sort_keys=True).encode()).hexdigest()[:10]
 
 
@@ -130,6 +145,8 @@ def condition_breaker(base: Breaker, spec: DatasetSpec, condition: int,
     only the closing geometry, so AC, BC, CC stay unchanged).
     """
     changes = {}
+    if spec.pair:
+        return _pair_breaker(base, spec, condition, rng)
     if spec.operation == "open":
         changes["xO1"] = base.xO1 + condition * STEP_M
     else:
@@ -141,6 +158,26 @@ def condition_breaker(base: Breaker, spec: DatasetSpec, condition: int,
             (base.TOf if spec.operation == "open" else base.TCf) * fr)
         changes["cb"] = base.cb * cb
     return dataclasses.replace(base, **changes)
+
+
+def _pair_breaker(base: Breaker, spec: DatasetSpec, condition: int, rng) -> Breaker:
+    """The opening spring's nut moves the spring seat: the compression at the closed (xO1) and
+    at the open (xO0) position both rise by ``condition·STEP_M``. One grease and temperature
+    state: one friction factor on TOf and TCf, one damping factor on cb."""
+    changes = {"xO0": base.xO0 + condition * STEP_M, "xO1": base.xO1 + condition * STEP_M}
+    if rng is not None:
+        fr = 1.0 + rng.uniform(-spec.friction_spread, spec.friction_spread)
+        cb = 1.0 + rng.uniform(-spec.damping_spread, spec.damping_spread)
+        changes.update(TOf=base.TOf * fr, TCf=base.TCf * fr, cb=base.cb * cb)
+    return dataclasses.replace(base, **changes)
+
+
+def pair_fit_breaker(base: Breaker, spec: DatasetSpec) -> Breaker:
+    """What a pair's fits know: the design breaker (the setting is what is inferred), its CC
+    range raised to ``PAIR_CC_HEADROOM`` × the top setting's design CC."""
+    top = _pair_breaker(base, spec, spec.conditions - 1, None).design_parameters()["CC"]
+    lo, hi = base.ranges["CC"]
+    return dataclasses.replace(base, ranges=dict(base.ranges, CC=(lo, max(hi, PAIR_CC_HEADROOM * top))))
 
 
 def setting_parameters(spec: DatasetSpec, base: Breaker | None = None) -> tuple:
@@ -180,7 +217,7 @@ def _with_end_of_travel(simulate):
 
 
 NUISANCE_NAMES = ("trigger_delay_s", "offset_rad", "gain", "friction_factor", "damping_factor",
-                  "snr_db", "noise_rad")
+                  "snr_db", "noise_rad", "gain_measured")
 
 
 def unit_breaker(base: Breaker, spec: DatasetSpec) -> Breaker:
@@ -205,8 +242,11 @@ def draw_recording(spec: DatasetSpec, condition: int, index: int, noise_for) -> 
     rng = np.random.default_rng([spec.seed, condition, index, 0 if spec.operation == "open" else 1,
                                  spec.unit, 104729])  # 104729: the recording stream's tag
     delay = float(rng.uniform(*spec.trigger_delay_s)) if spec.trigger_delay_s else 0.02
-    offset = float(rng.uniform(-spec.offset_rad, spec.offset_rad))
-    gain = float(1.0 + rng.uniform(-spec.gain_spread, spec.gain_spread))
+    # One transducer records both halves of a pair minutes apart: one zero offset, one gain.
+    sensor = (np.random.default_rng([spec.seed, condition, index, spec.unit, 104729, 2])
+              if spec.pair else rng)
+    offset = float(sensor.uniform(-spec.offset_rad, spec.offset_rad))
+    gain = float(1.0 + sensor.uniform(-spec.gain_spread, spec.gain_spread))
     if spec.snr_db_range:
         snr = float(rng.uniform(*spec.snr_db_range))
         noise = noise_for(snr)
@@ -238,7 +278,11 @@ def make_capture(spec: DatasetSpec, condition: int, index: int, *, base: Breaker
     else:
         rng = np.random.default_rng([spec.seed, condition, index, 0 if spec.operation == "open" else 1,
                                      spec.unit])
-    run = condition_breaker(unit, spec, condition, rng)
+    if spec.pair:  # the state both halves of the pair share (tag: the pair stream's)
+        state = np.random.default_rng([spec.seed, condition, index, spec.unit, 15485863])
+        run = condition_breaker(unit, spec, condition, state)
+    else:
+        run = condition_breaker(unit, spec, condition, rng)
     params = model_parameters(run, spec.operation)
     simulate = None
     if spec.source == "prototype":
@@ -262,7 +306,7 @@ def make_capture(spec: DatasetSpec, condition: int, index: int, *, base: Breaker
                                     simulate=simulate, shock_lead_s=lead, pre_s=rec["trigger_delay_s"])
         cap = _record(cap, rec)
         nuisance.update({k: rec[k] for k in ("trigger_delay_s", "offset_rad", "gain", "snr_db", "noise_rad")})
-    out = (cap, params, condition_breaker(base, spec, condition))
+    out = (cap, params, pair_fit_breaker(base, spec) if spec.pair else condition_breaker(base, spec, condition))
     return out + (nuisance,) if details else out
 
 
@@ -295,6 +339,32 @@ def zero_on_idle(capture, breaker: Breaker, operation: str):
     return dataclasses.replace(capture, travel=travel - (np.median(travel[:i]) - rest))
 
 
+def stop_to_stop_gain(capture, breaker: Breaker) -> float:
+    """The sensor gain a closing measures [-]: its travel runs from the open stop (``stroke``)
+    to the closed stop (0), so the span between the idle samples before the motion and the
+    settled last ``SETTLED_S`` is gain × stroke. NaN when the record has no idle part."""
+    from ..estimation.window import prepare_window
+
+    try:
+        w = prepare_window(capture, breaker, "close")
+    except FitError:
+        return float("nan")
+    travel = np.asarray(capture.travel, float)
+    i, n_end = int(round(w.t_start * capture.sample_rate)), int(round(SETTLED_S * capture.sample_rate))
+    if i < 32 or travel.size < i + n_end:
+        return float("nan")
+    return float((np.median(travel[:i]) - np.median(travel[-n_end:])) / breaker.stroke)
+
+
+def calibrate_gain(capture, breaker: Breaker, operation: str, gain: float):
+    """The zeroed capture (:func:`zero_on_idle`) divided by the sensor ``gain`` about its rest."""
+    cap = zero_on_idle(capture, breaker, operation)
+    if not np.isfinite(gain) or gain <= 0:
+        return cap
+    rest = 0.0 if operation == "open" else breaker.stroke
+    return dataclasses.replace(cap, travel=rest + (np.asarray(cap.travel, float) - rest) / gain)
+
+
 def travel_features(capture, *, window_s: float = FEATURE_WINDOW_S, points: int = FEATURE_POINTS):
     """The baselines' input: raw travel [rad] over a fixed window from the first sample,
     block-averaged to ``points`` values (captures shorter than the window are padded with
@@ -319,9 +389,16 @@ def _fit_task(task):
     cap, truth, breaker, nuisance = make_capture(spec, condition, index, details=True)
     features = travel_features(cap, window_s=feature_window_s(spec))
     try:
-        if spec.field_nuisance:
+        if spec.pair:  # both halves scaled by the gain the pair's closing measures stop to stop
+            closing = cap if spec.operation == "close" else make_capture(
+                dataclasses.replace(spec, operation="close"), condition, index)[0]
+            nuisance["gain_measured"] = stop_to_stop_gain(closing, breaker)
+            cap = calibrate_gain(cap, breaker, spec.operation, nuisance["gain_measured"])
+        elif spec.field_nuisance:
             cap = zero_on_idle(cap, breaker, spec.operation)
-        dc = truth.get("DC") if spec.operation == "close" else None
+        dc = None
+        if spec.operation == "close":  # a pair's closing knows only the design's DC = AO
+            dc = breaker.design_parameters()["DC"] if spec.pair else truth.get("DC")
         res = fit_capture(cap, breaker, spec.operation, dc=dc, seed=1 + index)
         est = [res.parameters[k] for k in names]
         err = [res.stderr[k] for k in names]
@@ -329,7 +406,7 @@ def _fit_task(task):
     except FitError as exc:
         est, err, rmse, msg = [np.nan] * len(names), [np.nan] * len(names), np.nan, str(exc)
     return (condition, index, est, err, [truth[k] for k in names], rmse, features, msg,
-            [nuisance[k] for k in NUISANCE_NAMES])
+            [nuisance.get(k, np.nan) for k in NUISANCE_NAMES])
 
 
 def build_dataset(spec: DatasetSpec, cache_dir: Path | None = None, *,
@@ -342,7 +419,8 @@ def build_dataset(spec: DatasetSpec, cache_dir: Path | None = None, *,
         ``condition`` (n,), ``index`` (n,), ``estimates`` (n, p), ``stderr`` (n, p),
         ``truth`` (n, p), ``rmse_rad`` (n,), ``features`` (n, FEATURE_POINTS) [rad],
         ``errors`` (n,) fit-failure messages ('' when fitted), ``names`` (p,), ``nuisance``
-        (n, 7) the drawn recording and run values named in ``nuisance_names``.
+        (n, 8) the drawn recording and run values named in ``nuisance_names`` (``gain_measured``:
+        the stop-to-stop gain of a pair's closing, NaN outside pairs).
         A failed fit leaves NaN estimates.
     """
     path = None

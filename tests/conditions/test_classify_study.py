@@ -1,5 +1,6 @@
 """The quick `classify` study (Table 9 under field nuisance, two protocols) and its classifiers."""
 
+import dataclasses
 import json
 
 import numpy as np
@@ -9,7 +10,9 @@ from service.studies import classify
 from service.studies.classification_methods import FIELD_NUISANCE, classification_spec
 from service.studies.condition_classifiers import NearestNominal, train_test
 from service.studies.condition_cnn import CNN1D, torch_available
-from service.studies.condition_data import DatasetSpec, setting_parameters
+from service.studies.common import load_reference
+from service.studies.condition_data import DatasetSpec, make_capture, setting_parameters, stop_to_stop_gain
+from service.studies.pair_setting import PairSetting
 
 
 @pytest.fixture(scope="module")
@@ -22,8 +25,9 @@ def test_json_has_both_protocols_the_four_methods_and_the_nuisance(study):
     out, _ = study
     data = json.loads((out / "classify.json").read_text())
     methods = {"proposed", "svm", "bpnn"} | ({"cnn"} if torch_available()[0] else set())
-    assert set(data["protocols"]) == {"cv5", "cross_unit"}
-    for proto, n in (("cv5", data["samples"]["unit1"]), ("cross_unit", data["samples"]["unit2"])):
+    assert set(data["protocols"]) == {"cv5", "cross_unit", "cv5_pair", "cross_unit_pair"}
+    for proto, n in (("cv5", data["samples"]["unit1"]), ("cross_unit", data["samples"]["unit2"]),
+                     ("cv5_pair", data["samples"]["unit1"]), ("cross_unit_pair", data["samples"]["unit2"])):
         assert set(data["protocols"][proto]) == methods
         for m in methods:
             acc = data["protocols"][proto][m]
@@ -39,11 +43,29 @@ def test_json_has_both_protocols_the_four_methods_and_the_nuisance(study):
     assert FIELD_NUISANCE["trigger_delay_s"][0] <= lo < hi <= FIELD_NUISANCE["trigger_delay_s"][1]
     lo, hi = nz["drawn_range"]["snr_db"]
     assert 40.0 <= lo < hi <= 55.0
-    assert set(data["acceptance"]) == {"cv5 proposed >= 98.3 %", "cross_unit proposed >= 95.0 %"}
+    assert set(data["acceptance"]) == {"cv5 proposed >= 98.3 %", "cross_unit proposed >= 95.0 %",
+                                       "cv5_pair proposed >= 95.0 %", "cross_unit_pair proposed >= 90.0 %"}
+    assert set(data["ceiling"]) == {"single_opening_true_BO", "pair_true_BO_CC"}
     md = (out / "classify.md").read_text()
-    assert "paper Table 9" in md and "98.3" in md and "cross_unit" in md
+    assert "paper Table 9" in md and "98.3" in md and "cross_unit_pair" in md and "identifiability" in md
     assert (out / "classify_confusion.png").exists()
-    assert len(list(out.glob("dataset-open-*.npz"))) == 4, "two units, main set and one sweep level"
+    assert len(list(out.glob("dataset-open-*.npz"))) == 6, "two units: main set, one sweep level, pairs"
+    assert len(list(out.glob("dataset-close-*.npz"))) == 2, "the pairs' closings of both units"
+
+
+def test_the_pair_separates_the_settings_where_one_opening_cannot(study):
+    _, res = study
+    ident = res["identifiability"]["sets"]
+    # One opening sees only P − f·TOf, one closing only P + f·TCf: rank 1 each; the pair, rank 2.
+    assert ident["opening"]["rank"] == 1 and ident["closing"]["rank"] == 1 and ident["pair"]["rank"] == 2
+    assert ident["opening"]["combination"]["f"] < 0 < ident["closing"]["combination"]["f"]
+    assert ident["pair"]["sd_P_steps"] < 0.5
+    # On the simulator's true values the pair reads the setting exactly, one opening does not.
+    ce = res["ceiling"]
+    assert ce["pair_true_BO_CC"]["cv5"] == 1.0
+    assert ce["single_opening_true_BO"]["cv5"] < 0.9
+    # The fitted pairs: the proposed rule beats the single-opening one on the same unit.
+    assert res["protocols"]["cv5_pair"]["proposed"] > res["protocols"]["cv5"]["proposed"]
 
 
 def test_with_little_friction_spread_the_proposed_method_separates_the_settings(study):
@@ -85,3 +107,38 @@ def test_cnn_learns_a_separable_problem():
     X = np.tanh((t - 0.3 - 0.2 * y[:, None]) / 0.05) + rng.normal(0, 0.2, (y.size, t.size))
     clf = CNN1D(seed=0, quick=True).fit(X, y)
     assert np.mean(clf.predict(X) == y) > 0.8
+
+
+def test_a_pair_shares_its_breaker_state_and_sensor_and_the_closing_measures_the_gain():
+    opening = classification_spec(quick=True, pair=True)
+    closing = dataclasses.replace(opening, operation="close")
+    (_, t_open, fit_breaker, n_open), (cap, t_close, _, n_close) = (
+        make_capture(s, 2, 1, details=True) for s in (opening, closing))
+    assert n_open["friction_factor"] == n_close["friction_factor"] != 1.0
+    assert n_open["gain"] == n_close["gain"] and n_open["offset_rad"] == n_close["offset_rad"]
+    assert n_open["trigger_delay_s"] != n_close["trigger_delay_s"]
+    assert fit_breaker.xO1 == load_reference().xO1, "the fit is not told the setting"
+    assert stop_to_stop_gain(cap, fit_breaker) == pytest.approx(n_close["gain"], abs=1e-3)
+    # The nut's two steps of pre-load: 2·kO·Δx·rO/J2 in both BO and CC above the design.
+    step = 2 * 130000.0 * 3.5e-3 * 0.08 / 0.243
+    design = load_reference().design_parameters()
+    f = n_open["friction_factor"]
+    assert t_open["BO"] == pytest.approx(design["BO"] + step - (f - 1) * 600.0 / 0.243)
+    assert t_close["CC"] == pytest.approx(design["CC"] + step + (f - 1) * 1600.0 / 0.243)
+
+
+def test_pair_setting_reads_the_setting_through_a_friction_that_moves_two_parameters_apart():
+    rng = np.random.default_rng(3)
+    y = np.repeat(np.arange(5), 40)
+    f = rng.uniform(-1, 1, y.size)  # friction: one step's worth, opposite signs in the two columns
+    X = np.column_stack([y - 1.5 * f, y + 4.0 * f]) * 150.0 + rng.normal(0, 5, (y.size, 2))
+    # The design's dCC/df is 600 per unit f and its step 150: the fitted step says the "fit" reads
+    # CC at 1.2 times its change, so the friction is scaled back by that response.
+    X[:, 1] *= 1.2
+    model = PairSetting(friction=(600.0, 150.0)).fit(X, y)
+    k, sd = model.infer(X)
+    assert np.mean(model.predict(X) == y) == 1.0 and np.all(sd < 0.1)
+    assert np.std(k - y) == pytest.approx(sd[0], rel=0.3)
+    assert np.std(model.friction(X) - (f - f.mean())) < 0.05
+    one = PairSetting().fit(X[:, :1], y)  # one column alone: the friction is not separable
+    assert np.mean(one.predict(X[:, :1]) == y) < 0.8
