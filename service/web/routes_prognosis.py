@@ -12,15 +12,15 @@ from service.jobs.prognosis import HOW_TO_ADD, as_json, breaker_prognoses
 from service.storage import crud
 
 from .render import security_headers
-from .routes import Id, Reader, _not_found, _session
+from .handlers import Id, Reader, db_session, not_found
 
 router = APIRouter(include_in_schema=False)
 
 
 @router.get("/ui/breakers/{breaker_id}/prognosis.json")
 def breaker_prognosis(request: Request, breaker_id: Id, user: Reader):
-    with _session(request) as session:
-        b = crud.get_breaker(session, breaker_id=breaker_id) or _not_found(f"breaker {breaker_id}")
+    with db_session(request) as session:
+        b = crud.get_breaker(session, breaker_id=breaker_id) or not_found(f"breaker {breaker_id}")
         progs = breaker_prognoses(session, breaker=b, settings=request.app.state.settings.drift_settings)
     body = {"breaker": b.name, "parameters": [as_json(p) for p in progs],
             "message": "" if progs else f"{b.name} has no maintenance limits: {HOW_TO_ADD}"}
