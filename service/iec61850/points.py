@@ -15,21 +15,21 @@ from dataclasses import dataclass, field
 from datetime import datetime, timedelta
 from typing import Iterable, Mapping
 
+from service.mechanics.nomenclature import CLOSING, OPENING, machine_unit
+
 IED_NAME = "hvcb"
 STANDARD_NS = "IEC 61850-7-4:2007B"  # ldNs of every logical device (7-4 Edition 2)
 HVCB_NS = "hvcb:2026A"               # dataNs of hvcb's extension data objects
 
-OPENING = ("AO", "BO", "DO", "EO")
-CLOSING = ("AC", "BC", "CC")
-PARAMETER_MEANING = {
-    "AO": ("opening spring stiffness factor kO rO^2/J2", "s^-2"),
-    "BO": ("opening spring force factor (kO xO1 rO - TOf)/J2", "s^-2"),
-    "DO": ("buffer damping factor cb rb^2/J2", "s^-1"),
-    "EO": ("buffer stiffness factor kb rb^2/J2", "s^-2"),
-    "AC": ("closing spring factor kC rC d/J1", "s^-2"),
-    "BC": ("inertia ratio J2/J1", "1"),
-    "CC": ("closing resistance factor (TCf + kO xO0 rO)/J2", "s^-2"),
-}
+PARAMETER_MEANING = {  # (meaning, unit): the units from the nomenclature, in ASCII
+    name: (meaning, machine_unit(name)) for name, meaning in (
+        ("AO", "opening spring stiffness factor kO rO^2/J2"),
+        ("BO", "opening spring force factor (kO xO1 rO - TOf)/J2"),
+        ("DO", "buffer damping factor cb rb^2/J2"),
+        ("EO", "buffer stiffness factor kb rb^2/J2"),
+        ("AC", "closing spring factor kC rC d/J1"),
+        ("BC", "inertia ratio J2/J1"),
+        ("CC", "closing resistance factor (TCf + kO xO0 rO)/J2"))}
 
 # Data attributes of each common data class as hvcb serves them: (name, FC, type).
 CDC_ATTRIBUTES = {

@@ -21,3 +21,8 @@ UNITS = {
     "CC": "s⁻²",  # (TCf + kO·xO0·rO)/J2: closing resistance factor
     "DC": "s⁻²",  # kO·rO²/J2 = AO, seen while closing
 }
+
+
+def machine_unit(name: str) -> str:
+    """``name``'s unit in ASCII for machine consumers (SCADA, IEC 61850): "s^-2", "s^-1", "1"."""
+    return UNITS[name].replace("⁻²", "^-2").replace("⁻¹", "^-1").replace("–", "1")

@@ -26,3 +26,9 @@ def test_every_fitted_parameter_has_a_unit():
     assert set(OPENING + CLOSING + ("CO", "DC")) <= set(UNITS)
     assert {UNITS[p] for p in ("AO", "BO", "EO", "AC", "CC", "DC")} == {"s⁻²"}
     assert UNITS["DO"] == UNITS["CO"] == "s⁻¹" and UNITS["BC"] == "–"
+
+
+def test_machine_units_are_the_same_units_in_ascii():
+    from service.mechanics.nomenclature import machine_unit
+
+    assert [machine_unit(p) for p in ("AO", "DO", "BC")] == ["s^-2", "s^-1", "1"]

@@ -9,6 +9,7 @@ captures are ingested directly instead of through the Modbus emulator.
 from __future__ import annotations
 
 import re
+from contextlib import contextmanager
 from datetime import timedelta
 
 import pytest
@@ -69,14 +70,26 @@ def signed(text: str) -> float:
     return float(text.replace("−", "-"))
 
 
-def test_alarms_page_values_have_units_and_the_now_value_follows_the_latest_fit(demo, browser):
-    from service.storage import crud
-
+@contextmanager
+def reader_page(browser, demo, path: str, ready: bool = True):
+    """A reader's page at ``path`` in a fresh browser context; no console error by the end."""
     context = browser.new_context(viewport=VIEWPORT)
     log = PageLog(context, demo.base)
     try:
         page = sign_in(context, demo, "reader", log)
-        page.goto(demo.base + "/alarms")
+        page.goto(demo.base + path)
+        if ready:
+            page.wait_for_selector('body[data-ready="1"]', timeout=60000)
+        yield page
+        assert log.errors == [], log.errors
+    finally:
+        context.close()
+
+
+def test_alarms_page_values_have_units_and_the_now_value_follows_the_latest_fit(demo, browser):
+    from service.storage import crud
+
+    with reader_page(browser, demo, "/alarms", ready=False) as page:
         card = page.locator('section.alarm:has(strong:text-is("DO"))').first
         assert card.count() == 1, page.locator("#alarm-list").inner_text()
         assert_units(kv_cells(page, "#alarm-list"), "alarms page")
@@ -99,18 +112,10 @@ def test_alarms_page_values_have_units_and_the_now_value_follows_the_latest_fit(
         assert shown_now == pytest.approx(latest.parameters["DO"], rel=1e-3)
         assert shown_now < shown_raised * 0.9, (shown_now, shown_raised)
         screenshot(page, "alarms")
-        assert log.errors == [], log.errors
-    finally:
-        context.close()
 
 
 def test_breaker_page_alarm_line_and_summary_have_units(demo, browser):
-    context = browser.new_context(viewport=VIEWPORT)
-    log = PageLog(context, demo.base)
-    try:
-        page = sign_in(context, demo, "reader", log)
-        page.goto(demo.base + "/breakers/1")
-        page.wait_for_selector('body[data-ready="1"]', timeout=60000)
+    with reader_page(browser, demo, "/breakers/1") as page:
         assert_units(kv_cells(page), "breaker page")
         lines = page.locator("#breaker-alarms .alarm-line").all_inner_texts()
         assert lines, page.locator("#breaker-alarms").inner_text()
@@ -120,9 +125,6 @@ def test_breaker_page_alarm_line_and_summary_have_units(demo, browser):
         # the operations table's numeric column names its unit in the header
         assert "mrad" in page.locator("#operations thead").inner_text().lower()
         screenshot(page, "breaker")
-        assert log.errors == [], log.errors
-    finally:
-        context.close()
 
 
 def test_operation_page_rows_have_units(demo, browser):
@@ -132,12 +134,7 @@ def test_operation_page_rows_have_units(demo, browser):
 
     with demo.Session() as s:
         op_id = s.scalar(select(OperationRow.id).where(OperationRow.kind == "open").order_by(OperationRow.id.desc()).limit(1))
-    context = browser.new_context(viewport=VIEWPORT)
-    log = PageLog(context, demo.base)
-    try:
-        page = sign_in(context, demo, "reader", log)
-        page.goto(f"{demo.base}/operations/{op_id}")
-        page.wait_for_selector('body[data-ready="1"]', timeout=60000)
+    with reader_page(browser, demo, f"/operations/{op_id}") as page:
         assert_units(kv_cells(page, "#op-summary"), "operation page")
         rows = page.eval_on_selector_all("#op-tables table.params tbody tr",
                                          "rs => rs.map(r => [...r.cells].map(c => c.innerText.trim()))")
@@ -145,6 +142,3 @@ def test_operation_page_rows_have_units(demo, browser):
         for cells in rows:
             if any(quantities(c) for c in cells[1:]):
                 assert cells[-1] and not NUMBER.fullmatch(cells[-1]), f"no unit in the last column: {cells}"
-        assert log.errors == [], log.errors
-    finally:
-        context.close()
