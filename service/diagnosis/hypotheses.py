@@ -38,6 +38,7 @@ EXACT_NFEV = 30     # evaluations of the exact joint refit
 EXACT_TOP = 4       # singles refitted exactly: the best by the linearised BIC
 RELIN_NFEV = 12     # evaluations of each re-linearised refit
 PAIR_TOP = 3        # pairs are formed from the best singles (ΔBIC < 0) ...
+RESCREEN_TOP = 2    # singles screened again from every start after their exact refit
 
 # Deterministic extra starts of each family's shape (besides the prototype's defaults): forms far
 # from the default that a local fit from the default would not reach (signs, exponents, sides).
@@ -296,6 +297,18 @@ def fit_all(windows: Windows, catalogue) -> "Fits":
     for h in ranked[:EXACT_TOP]:
         if h.chi2 + h.k * np.log(n) < hyps["none"].chi2:
             hyps[h.name] = refine_exact(windows, h)
+    # The shape objective is multimodal (a contact touch's fraction moves a kink): the best
+    # singles still above the noise are screened again from every start at the states the exact
+    # fit found, and refitted (A's wipe group: χ² 1587 -> 1063 on 1005 blocks, the truth's 1013)
+    floor = n + 5.0 * np.sqrt(2.0 * n)
+    for h in sorted((hyps[e] for e in catalogue), key=lambda h: h.chi2)[:RESCREEN_TOP]:
+        if h.chi2 > floor:
+            e = h.effects[0]
+            hb = fit_hypothesis(windows, (e,), family_starts(e), caps=h.captures)
+            if hb.chi2 < h.chi2:
+                h2 = refine_exact(windows, hb)
+                if h2.chi2 < h.chi2:
+                    hyps[e] = h2
     singles = [hyps[e] for e in catalogue]
     lead = sorted((h for h in singles if h.chi2 + h.k * np.log(n) < hyps["none"].chi2),
                   key=lambda h: h.chi2 + h.k * np.log(n))[:PAIR_TOP]
