@@ -317,7 +317,7 @@ def _write_tables(out_dir, result):
         f"and TCf and one damping factor; the nut raises xO0 and xO1 alike; one sensor gain and "
         f"offset per pair, every other nuisance drawn per capture; failed pair fits: unit 1 "
         f"{result['pair_fit_failures']['unit1']}, unit 2 {result['pair_fit_failures']['unit2']}. "
-        f"Proposed on the pairs: GLS setting from the fitted AO, BO, CC; stated sd "
+        f"Proposed on the pairs: GLS setting from the fitted AO, BO, BC, CC; stated sd "
         f"{si['stated_sd_steps']:.3f} steps; on unit 2 bias {si['unit2']['bias_steps']:+.3f}, sd "
         f"{si['unit2']['sd_steps']:.3f}, worst {si['unit2']['max_abs_steps']:.2f} steps.",
         f"Wall time {result['wall_time_s']['total']:.0f} s (fits {result['wall_time_s']['fits']:.0f} s).",

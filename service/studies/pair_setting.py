@@ -12,7 +12,8 @@ observation, and no rule on an opening alone can beat the 48.5 % of the simulato
 closing sees P + f·TCf, with the friction's sign reversed: the pair's 2 × 2 Jacobian is regular.
 
 :func:`identifiability` gives that table (Jacobian and Fisher information per observation set).
-:class:`PairSetting` is the proposed classifier on the fitted (AO, BO, CC) of each pair.
+:class:`PairSetting` is the proposed classifier on the fitted (AO, BO, BC, CC) of each pair
+(:func:`pair_inputs`).
 """
 
 from __future__ import annotations
@@ -22,8 +23,21 @@ import numpy as np
 from ..mechanics.breaker import Breaker
 from .condition_data import STEP_M
 
-# The pair estimator's inputs, in this order: the opening's AO and BO, the closing's CC.
-PAIR_PARAMETERS = ("AO", "BO", "CC")
+# The fitted parameters the pair estimator reads: the opening's AO and BO, the closing's BC and CC.
+PAIR_PARAMETERS = ("AO", "BO", "BC", "CC")
+
+
+def pair_inputs(AO, BO, BC, CC) -> np.ndarray:
+    """The estimator's inputs (n, 4): BC, and AO, BO, CC times BC.
+
+    BC = J2/J1 and J1 is the closing side's (not the opening spring's): AO·BC, BO·BC and CC·BC
+    are the torques AO·J2, BO·J2, CC·J2 over J1, free of the unit's J2, which a second unit
+    carries within ±3 % (it moved the estimate by half a step across units). BC itself stays an
+    input so that Σ holds the closing fit's BC–CC trade-off. CC·BC comes last (:meth:`PairSetting.friction`).
+    """
+    BC = np.asarray(BC, float)
+    return np.column_stack([BC, np.asarray(AO, float) * BC, np.asarray(BO, float) * BC,
+                            np.asarray(CC, float) * BC])
 
 
 def friction_direction(breaker: Breaker) -> tuple:
@@ -88,7 +102,7 @@ def identifiability(breaker: Breaker, sd: dict, step_nm: float, f_scale: float =
 class PairSetting:
     """The setting of a pair by generalised least squares on its fitted parameter vector.
 
-    Model, per pair: v = μ0 + k·s + e, with v the fitted (AO, BO, CC), k the setting (0-based
+    Model, per pair: v = μ0 + k·s + e, with v the inputs (:func:`pair_inputs`), k the setting (0-based
     nut steps), s its direction and e the within-setting scatter: the friction state (which
     moves BO and CC in opposite senses, the Jacobian above) plus the fits' errors (AO and BO
     trade off in the opening fit). ``fit`` learns μ0 and s by least squares on the labelled
@@ -138,7 +152,7 @@ class PairSetting:
         df, step = self.friction_model
         X = np.asarray(X, float)
         k, _ = self.infer(X)
-        j = X.shape[1] - 1  # the closing's CC is the last input (PAIR_PARAMETERS)
+        j = X.shape[1] - 1  # the closing's CC (times BC) is the last input
         resid = X[:, j] - self.mu0_[j] - k * self.s_[j]
         return resid / (df * self.s_[j] / step)
 
