@@ -34,9 +34,6 @@ LAYER = {pkg: i for i, pkgs in enumerate(LAYERS) for pkg in pkgs}
 # Each package's ``commands.py`` is a subcommand of ``hvcb`` (service/cli.py imports it by name):
 # the command-line edge, where settings are read. It counts as part of service.cli.
 CLI = "service.cli"
-# File circles whose removal is in flight on other branches of issue 30 (h31: alarms/actions <->
-# drift, h30a: api/deps <-> guard). Empty this once they are merged.
-BEING_REMOVED = ("service.alarms.actions <-> service.alarms.drift:", "service.api.deps <-> service.api.guard:")
 
 
 def module_name(path: Path, root: Path = ROOT) -> str:
@@ -212,7 +209,7 @@ def test_package_of(module, expected):
 
 
 def test_no_import_cycle_between_files():
-    cycles = [c for c in file_cycles() if not any(c.startswith(k) for k in BEING_REMOVED)]
+    cycles = file_cycles()
     assert not cycles, "import cycles between files (move what both need into a third module):\n" + "\n".join(cycles)
 
 
