@@ -15,6 +15,7 @@ LABELS = {"top1_detectable": "top-1 on detectable", "none_on_healthy": "healthy 
           "wrong_names": "wrong names", "two_effect_both": "two effects: both",
           "outside_unexplained": "outside → unexplained", "stated_ge_0_9_right": "right when stated ≥ 0.9",
           "undetectable_none": "undetectable → none",
+          "undetectable_none_absorbed_listed": "undetectable → none, effect in absorbed",
           "undetectable_none_absorbed": "undetectable → none, absorbed, bias agrees"}
 
 

@@ -14,7 +14,8 @@ Rules (each a function of one row, so that each can fail on its own):
 * two effects: both named, or ``ambiguous`` with both among the rivals;
 * outside the catalogue → ``unexplained``;
 * undetectable single-effect groups → ``none``, the effect in ``absorbed``, its stated bias
-  agreeing with the oracle's (:func:`bias_agrees`);
+  agreeing with the oracle's (:func:`bias_agrees`; counted where the generator wrote the healthy
+  twin that gives the true bias);
 * right (for calibration): the answer is what the Acceptance expects: the truth, ``none`` on
   healthy and on undetectable single-effect groups, ``unexplained`` outside the catalogue.
 
@@ -101,6 +102,16 @@ def bias_agrees(stated: dict, truth: dict, factor: float = BIAS_FACTOR) -> bool:
     return t * s > 0 and 1 / factor <= s / t <= factor
 
 
+def absorbed_listed(r) -> bool:
+    """``none`` with the true effect in ``absorbed`` (the bias not checked)."""
+    return r["status"] == "none" and any(a["effect"] in r["truth"] for a in r.get("absorbed") or [])
+
+
+def has_true_bias(r) -> bool:
+    """The oracle knows the effect's true bias (the generator wrote the healthy twin)."""
+    return bool(r.get("oracle", {}).get("bias"))
+
+
 def absorbed_ok(r) -> bool:
     """``none``, the true effect in ``absorbed``, its stated bias agreeing with the oracle's."""
     if r["status"] != "none":
@@ -143,7 +154,9 @@ def score(rows) -> dict:
         "wrong_names": frac(ok, wrong),
         "two_effect_both": frac([r for r in ok if len(r["truth"]) == 2], both),
         "outside_unexplained": frac([r for r in ok if r["outside"]], lambda r: r["status"] == "unexplained"),
-        "undetectable_none_absorbed": frac([r for r in singles if not detectable(r)], absorbed_ok),
+        "undetectable_none_absorbed_listed": frac([r for r in singles if not detectable(r)], absorbed_listed),
+        "undetectable_none_absorbed": frac([r for r in singles if not detectable(r) and has_true_bias(r)],
+                                           absorbed_ok),
         "undetectable_none": frac([r for r in singles if not detectable(r)], lambda r: r["status"] == "none"),
         "stated_ge_0_9_right": frac(hi, right),
         "status_counts": {s: sum(r["status"] == s for r in ok) for s in ("none", "named", "ambiguous", "unexplained")},
