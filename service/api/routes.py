@@ -16,7 +16,7 @@ from drivers.capture import CaptureError
 from service.errors import redact_paths
 from service.jobs.upload import UploadRefused, further_operations, ingest_upload, parse_upload
 from service.storage import crud
-from service.storage.crud_alarms import annunciated
+from service.storage.crud_alarms import annunciated, shelved_now
 from service.storage.fit_curve import fit_curve
 from service.storage.models import BreakerRow, utcnow
 
@@ -382,7 +382,9 @@ def _scada_points(session, settings) -> list[s.ScadaPoint]:
     for row in crud.list_breakers(session):
         d = daq.get(row.id)
         daq_down = d is not None and (not d.connected or d.last_seen is None or now - d.last_seen > daq_timeout)
-        alarms = annunciated(crud.list_alarms(session, state="active", breaker_id=row.id), now)
+        active = crud.list_alarms(session, state="active", breaker_id=row.id)
+        alarms = annunciated(active, now)
+        shelves = {a.parameter: a for a in active if shelved_now(a, now)}
         level = 2 if any(a.level == "alarm" for a in alarms) else 1 if alarms else 0
         for kind, section, names in (("open", "opening", s.OPENING), ("close", "closing", s.CLOSING)):
             fit = crud.latest_fit(session, breaker_id=row.id, kind=kind)
@@ -397,8 +399,11 @@ def _scada_points(session, settings) -> list[s.ScadaPoint]:
                         quality = "uncertain"
                     else:
                         quality = "good"
+                shelf = shelves.get(name)
                 points.append(s.ScadaPoint(point=f"{row.tag}.{section}.{name}", value=value, unit=s.UNITS[name],
-                                           timestamp=ts, quality=quality))
+                                           timestamp=ts, quality=quality,
+                                           shelved_until=shelf.shelved_until if shelf else None,
+                                           shelved_by=shelf.shelved_by if shelf else None))
         points.append(s.ScadaPoint(point=f"{row.tag}.alarm_level", value=float(level), unit="1", timestamp=now,
                                    quality="good"))
         if row.id in soonest:  # median openings to the soonest limit; null: none within the horizon

@@ -212,6 +212,9 @@ class ScadaPoint(BaseModel):
     unit: str
     timestamp: UtcTime | None
     quality: Literal["good", "uncertain", "bad"]
+    shelved_until: UtcTime | None = Field(None, description="the parameter's active alarm is shelved "
+                                          "until then (ISA-18.2): it is left out of alarm_level")
+    shelved_by: str | None = Field(None, description="who shelved it")
 
 
 class ScadaPointList(RootModel[list[ScadaPoint]]):

@@ -275,6 +275,10 @@ def test_a_shelved_alarm_leaves_the_fleet_status_scada_and_iec61850_until_it_uns
                         headers=env.h("operator"))
     assert r.status_code == 200, r.text
     assert announced() == (0.0, "ok", {})
+    env.client.app.state.scada_cache = None
+    do = next(p for p in env.client.get("/api/v1/scada/points", headers=env.h("reader")).json()
+              if p["point"] == f"{tag}.opening.DO")
+    assert do["shelved_by"] == "test-operator" and do["shelved_until"] is not None  # the point says so
     _web_sign_in(env, "reader")
     fleet = env.client.get("/").text
     assert "DO alarm shelved until" in fleet or "DO warning shelved until" in fleet
@@ -285,6 +289,8 @@ def test_a_shelved_alarm_leaves_the_fleet_status_scada_and_iec61850_until_it_uns
     assert [x["id"] for x in _active(env)] == [a["id"]]  # still on the alarm list
     assert env.client.post(f"/api/v1/alarms/{a['id']}/unshelve", headers=env.h("operator")).status_code == 200
     assert announced() == (level, status, iec)
+    env.client.app.state.scada_cache = None
+    assert all(p["shelved_until"] is None for p in env.client.get("/api/v1/scada/points", headers=env.h("reader")).json())
 
 
 def test_an_escalation_breaks_through_a_shelve_and_says_so_in_the_audit(env):
