@@ -282,10 +282,17 @@ def cam_profile_from_text(text: str, *, source: str) -> CamProfile:
 
     if len(text.encode("utf-8", "replace")) > MAX_CAM_BYTES:
         raise BreakerFileError(f"cam profile {source} is larger than {MAX_CAM_BYTES} bytes")
+    import warnings
+
     try:
-        table = np.loadtxt(io.StringIO(text), delimiter=",", skiprows=1, ndmin=2)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)  # numpy warns on no rows: refused below, in words
+            table = np.loadtxt(io.StringIO(text), delimiter=",", skiprows=1, ndmin=2)
     except ValueError as exc:
         raise BreakerFileError(f"cam profile {source} is not a two-column numeric CSV: {exc}") from None
+    if table.size == 0:
+        raise BreakerFileError(f"cam profile {source} holds no data rows (a header line, then "
+                               "camshaft_rad,output_shaft_rad rows)")
     if table.shape[1] != 2:
         raise BreakerFileError(f"cam profile {source} must have exactly two columns")
     if not np.isfinite(table).all():

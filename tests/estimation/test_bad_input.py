@@ -139,3 +139,15 @@ def test_cli_errors_are_one_line_without_traceback(tmp_path):
         assert "Traceback" not in proc.stderr
         assert len(proc.stderr.strip().splitlines()) == 1
         assert proc.stderr.startswith("hvcb fit: error:")
+
+
+@pytest.mark.parametrize("text", ["", "camshaft_rad,output_shaft_rad\n"])
+def test_an_empty_cam_table_is_refused_in_words_without_a_numpy_warning(text):
+    import warnings
+
+    from service.breaker_file import BreakerFileError, cam_profile_from_text
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # numpy's "input contained no data" must not reach the console
+        with pytest.raises(BreakerFileError, match="holds no data rows"):
+            cam_profile_from_text(text, source="cam.csv")
