@@ -319,6 +319,18 @@ def fit_all(windows: Windows, catalogue) -> "Fits":
         lead_caps = min((hyps[pair[0]], hyps[pair[1]]), key=lambda x: x.chi2).captures
         h = refine_exact(windows, fit_hypothesis(windows, pair, [z0], caps=lead_caps))
         hyps[h.name] = h
+    # A pair can beat its singles only because its refit converged further, not because both
+    # effects are there: each effect of the best pair is refitted alone from the pair's states
+    # and parameters, so that the evidence compares converged fits
+    pairs = [h for h in hyps.values() if len(h.effects) == 2]
+    if pairs:
+        bp = min(pairs, key=lambda h: h.chi2)
+        for e in bp.effects:
+            alone = fit_hypothesis(windows, (e,), [np.concatenate([[bp.phi[e][0]], bp.phi[e][1]])],
+                                   caps=bp.captures)
+            alone = refine_exact(windows, alone)
+            if alone.chi2 < hyps[e].chi2:
+                hyps[e] = alone
     fits = Fits(windows, hyps)
     best = fits.best_catalogued(n)
     hyps["outside_catalogue"] = outside_fit(windows, best)
