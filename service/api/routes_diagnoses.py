@@ -71,8 +71,10 @@ class DiagnosisResult(BaseModel):
                                     "'outside_catalogue'")
     answer_probability: float = Field(description="its calibrated probability; equals probabilities[answer]")
     raw_probability: float | None = Field(None, description="the evidence's probability before calibration")
-    probabilities: dict[str, float] = Field(description="every hypothesis, renormalised around the answer; "
-                                                        "'none' is P(no effect)")
+    probabilities: dict[str, float] = Field(description="every hypothesis, renormalised around the answer's "
+                                                        "calibrated probability; 'none' is P(no effect); "
+                                                        "'unattributed': the share the calibration takes "
+                                                        "from the answer without naming an alternative")
     effects: list[str] = Field(default_factory=list, description="the named effects (status named)")
     rivals: list[dict] = Field(default_factory=list, description="[{effect, probability}] at ≥ 5 %")
     absorbed: list[dict] = Field(default_factory=list, description="[{effect, strength, bias: {parameter: "

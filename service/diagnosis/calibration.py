@@ -46,14 +46,27 @@ def calibrate(p_raw: float, path: str | None = None) -> tuple[float, str]:
     return float(np.interp(p_raw, c["x"], c["y"])), str(c.get("method", "isotonic"))
 
 
+# The share of probability that the calibration takes from the answer without saying which
+# alternative it belongs to (see ``renormalise``).
+UNATTRIBUTED = "unattributed"
+
+
 def renormalise(probabilities: dict, answer: str, p_answer: float) -> dict:
-    """``probabilities`` with the answer's set to ``p_answer`` and the others scaled to sum to 1
-    (so the card's table and its stated probability tell one story)."""
-    rest = 1.0 - probabilities[answer]
-    out = {}
-    for k, p in probabilities.items():
-        if k == answer:
-            out[k] = float(p_answer)
-        else:
-            out[k] = float(p * (1.0 - p_answer) / rest) if rest > 0 else (1.0 - p_answer) / (len(probabilities) - 1)
+    """``probabilities`` with the answer's set to its calibrated ``p_answer``: one table, one story.
+
+    When the calibration raises the answer, the others shrink in proportion. When it lowers it,
+    the map says only how often such an answer is wrong, not which alternative is right, so no
+    alternative gains: each keeps its evidence probability, capped at ``p_answer`` (the map would
+    state no more for it as an answer), and the rest is listed as ``unattributed``. The answer
+    stays the most probable row, and a rival never leads on a share the evidence did not give it.
+    """
+    raw = float(probabilities[answer])
+    if p_answer >= raw:
+        rest = 1.0 - raw
+        n_other = max(len(probabilities) - 1, 1)
+        return {k: float(p_answer) if k == answer else
+                (float(p * (1.0 - p_answer) / rest) if rest > 0 else (1.0 - p_answer) / n_other)
+                for k, p in probabilities.items()}
+    out = {k: float(p_answer) if k == answer else float(min(p, p_answer)) for k, p in probabilities.items()}
+    out[UNATTRIBUTED] = max(1.0 - sum(out.values()), 0.0)
     return out

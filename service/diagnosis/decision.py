@@ -2,7 +2,8 @@
 
 1. The answer is the most probable hypothesis: ``none`` (P(no effect)), one effect, a pair, or
    ``outside_catalogue``. Its raw probability goes through the calibration map
-   (``calibration``) and the table is renormalised around it: one number everywhere.
+   (``calibration``) and the table is renormalised around it: one number everywhere (a share
+   the calibration cannot attribute to an alternative is listed as ``unattributed``).
 2. It is stated (status ``none`` / ``named`` / ``unexplained``) when that probability reaches
    ``P_NAME``; otherwise ``ambiguous`` with the rivals (every hypothesis above ``P_RIVAL``) and the
    measurement that would separate the first two.
@@ -20,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..mechanics.effects import REFERENCE_STRENGTHS, shape_defaults
-from .calibration import calibrate, renormalise
+from .calibration import UNATTRIBUTED, calibrate, renormalise
 from .data import STATE
 from .evidence import Evidence
 from .hypotheses import Fits, n_params, signature
@@ -59,7 +60,7 @@ def decide(fits: Fits, ev: Evidence, catalogue, strengths=None) -> Decision:
     top, p_raw = ev.ranked()[0]
     p_cal, method = calibrate(p_raw)
     probs = renormalise(ev.probabilities, top, p_cal)
-    ranked = sorted(probs.items(), key=lambda kv: -kv[1])
+    ranked = sorted(((k, p) for k, p in probs.items() if k != UNATTRIBUTED), key=lambda kv: -kv[1])
     rivals = [{"effect": k, "probability": p} for k, p in ranked if p >= P_RIVAL][:4]
     h = hyps[top]
     if p_cal >= P_NAME:

@@ -38,7 +38,7 @@ def _effects_hypothesis(fits: Fits, dec: Decision):
     if h.effects:
         return h
     for name, _ in sorted(dec.probabilities.items(), key=lambda kv: -kv[1]):
-        if fits.hypotheses[name].effects:
+        if name in fits.hypotheses and fits.hypotheses[name].effects:
             return fits.hypotheses[name]
     return None
 

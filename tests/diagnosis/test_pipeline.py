@@ -86,6 +86,7 @@ def test_a_5ks_analyser_record_is_diagnosed(tmp_path):
     """Blocks are a time (125 µs), not 16 samples: an opening of a 5 kS/s close-open analyser
     record (the reduced model's curve, no effect) is diagnosed, not refused for its length."""
     from drivers.capture_file import read_capture
+    from service.acquisition.capture_file import breaker_reading
     from service.breaker_file import load_breaker
     from tests.analyser.export_gen import Spec, write_export
     from tests.conftest import REPO
@@ -97,7 +98,7 @@ def test_a_5ks_analyser_record_is_diagnosed(tmp_path):
     for seed in (1, 2, 3, 4):       # four records of one breaker (one record alone is weak evidence)
         path = tmp_path / f"rec{seed}.csv"
         write_export(path, Spec(rate=5_000, seed=seed))
-        caps.append(operation_capture(read_capture(path, travel_channel=b.channels["travel"]), b, "open")[0])
+        caps.append(operation_capture(read_capture(path, **breaker_reading(b)), b, "open")[0])
     r = diagnose(caps, b, "open", next_measurements=False)
     assert r["noise_model"]["samples_per_block"] == 1.0
     assert r["blocks"] > 4 * 100

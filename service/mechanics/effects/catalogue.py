@@ -146,6 +146,7 @@ NAMES_IN_WORDS = {
     "contact_wipe": "contact wipe load",
     "none": "no unmodelled effect",
     "outside_catalogue": "outside the catalogue",
+    "unattributed": "not attributed (how often such an answer is wrong)",
 }
 
 
