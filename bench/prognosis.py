@@ -187,7 +187,7 @@ def main(argv=None) -> int:
     ap.add_argument("--out", type=Path, default=RESULTS)
     a = ap.parse_args(argv)
     settings = DriftSettings()
-    per = a.histories // len(SCENARIOS)
+    per = -(-a.histories // len(SCENARIOS))  # at least --histories in all
     jobs = [(s, [[a.seed, k, b] for b in range(lo, min(per, lo + 20))], settings.to_dict())
             for k, s in enumerate(SCENARIOS) for lo in range(0, per, 20)]
     t0 = time.perf_counter()
