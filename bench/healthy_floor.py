@@ -1,10 +1,10 @@
 """Validation of the diagnosis's nuisance state (issue 29, P2): healthy groups of prototypes A, B
 and C, their tolerances and per-operation conditions ON, must leave a joint gap at the noise floor
-once each capture's reduced state (plus CO and τ) and the unit's α0 are profiled out.
+once each capture's reduced state (plus CO, α0 and τ for an opening) is profiled out.
 
 Per prototype and operation: ``GROUPS`` units (±3 % tolerance), ``CAPTURES`` captures each under
 the prototype's own drawn conditions. Prints χ²/n of the reduced fit (block means, whitened by the
-noise model) and the gap per sample in noise units, gap/σ = √(max(χ²/n − 1, 0)/BLOCK).
+noise model) and the gap per sample in noise units, gap/σ = √(max(χ²/n − 1, 0)/samples per block).
 Writes bench/results/healthy_floor.json.
 Run: PYTHONPATH=. .venv/bin/python bench/healthy_floor.py [--groups 3] [--captures 4]
 """
@@ -23,7 +23,6 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 
 from service.breaker_file import load_breaker  # noqa: E402
-from service.diagnosis.data import BLOCK  # noqa: E402
 from service.diagnosis.windows import prepare  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -50,7 +49,7 @@ def run(groups: int, captures: int, seed: int = 29):
                 chi = float(sum(np.sum(c.project_out(c.r) ** 2) for c in w.captures))
                 n = w.n
                 per = chi / n
-                gap = float(np.sqrt(max(per - 1.0, 0.0) / BLOCK))
+                gap = float(np.sqrt(max(per - 1.0, 0.0) / w.block))
                 rows.append({"prototype": proto, "operation": op, "group": g, "captures": captures,
                              "chi2_per_block": per, "gap_sigma": gap, "blocks": n,
                              "wall_s": time.perf_counter() - t0})

@@ -14,11 +14,12 @@ from pathlib import Path
 from typing import Annotated
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model, field_validator, model_validator
 
 from .breaker_travel import TravelMapError, travel_options
 from .mechanics.breaker import TABLE2_RANGES, Breaker
 from .mechanics.cam_profile import CamProfile, CamProfileError
+from .mechanics.effects import EFFECT_NAMES, PHYSICAL_UPPER, REFERENCE_STRENGTHS, SIGNED
 
 MAX_TEXT_BYTES = 200_000       # a breaker file is a page of TOML; the API refuses more
 MAX_CAM_BYTES = 5_000_000      # a cam table of ~100,000 rows
@@ -123,6 +124,20 @@ class Acquisition(_Section):
     motion_fraction: Fraction | None = None
 
 
+def _effects_section():
+    """``[effects]``: how strong each catalogued effect typically is on this breaker [-] (the
+    diagnosis's fit scale and its "absorbed" check); each within the catalogue's physical bound,
+    negative only for the signed families. Unnamed effects keep the reference breaker's."""
+    fields = {}
+    for name in EFFECT_NAMES:
+        hi = PHYSICAL_UPPER[name]
+        fields[name] = (float | None, Field(None, ge=-hi if name in SIGNED else 0.0, le=hi, allow_inf_nan=False))
+    return create_model("EffectStrengths", __base__=_Section, **fields)
+
+
+EffectStrengths = _effects_section()
+
+
 class BreakerFileModel(BaseModel):
     """A breaker file's content. A new section is one more field here (its own model)."""
 
@@ -138,6 +153,7 @@ class BreakerFileModel(BaseModel):
     channels: Channels = Field(default_factory=Channels)
     acquisition: Acquisition = Field(default_factory=Acquisition)
     ranges: dict[str, tuple[float, float]] = Field(default_factory=dict)
+    effects: EffectStrengths = Field(default_factory=EffectStrengths)
 
     @model_validator(mode="after")
     def _cam_or_unknown(self):
@@ -240,6 +256,22 @@ def load_breaker(path: str | Path) -> Breaker:
     model = parse_breaker_text(text, source=str(path))
     cam = load_cam_profile(path.parent / model.cam.profile) if model.cam is not None else None
     return _build(model, cam, default_name=path.stem, source=path.name, folder=path.parent)
+
+
+def effect_strengths(text: str, *, source: str = "(text)") -> dict:
+    """{effect: typical strength} of a breaker file's text: its ``[effects]`` over the reference
+    breaker's (service.mechanics.effects.REFERENCE_STRENGTHS)."""
+    model = parse_breaker_text(text, source=source)
+    given = {k: v for k, v in model.effects.model_dump().items() if v is not None}
+    return {**REFERENCE_STRENGTHS, **given}
+
+
+def load_effect_strengths(path: str | Path) -> dict:
+    """``effect_strengths`` of a breaker file on disk."""
+    path = Path(path)
+    if not path.is_file():
+        raise BreakerFileError(f"breaker file not found: {path}")
+    return effect_strengths(path.read_text(), source=str(path))
 
 
 def cam_profile_from_text(text: str, *, source: str) -> CamProfile:

@@ -10,7 +10,7 @@ from typing import Annotated, Literal
 
 from fastapi import APIRouter, HTTPException, Path as PathParam, Query, Request
 from fastapi.responses import JSONResponse
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, ConfigDict, Field
 
 from service.errors import UserError
 from service.jobs.breaker_diagnosis import (MAX_LAST, MIN_LAST, NothingToDiagnose, QueueFull, queue_diagnosis,
@@ -61,9 +61,31 @@ class BreakerDiagnosisBrief(BaseModel):
     url: str
 
 
+class DiagnosisResult(BaseModel):
+    """service.diagnosis.diagnose's answer (docs/diagnosis.md); the keys the card reads are typed,
+    the rest (where, gap, parameters, ...) pass through."""
+
+    model_config = ConfigDict(extra="allow")
+    status: Literal["none", "named", "ambiguous", "unexplained"]
+    answer: str = Field(description="the most probable hypothesis: effects joined by '+', 'none' or "
+                                    "'outside_catalogue'")
+    answer_probability: float = Field(description="its calibrated probability; equals probabilities[answer]")
+    raw_probability: float | None = Field(None, description="the evidence's probability before calibration")
+    probabilities: dict[str, float] = Field(description="every hypothesis, renormalised around the answer; "
+                                                        "'none' is P(no effect)")
+    effects: list[str] = Field(default_factory=list, description="the named effects (status named)")
+    rivals: list[dict] = Field(default_factory=list, description="[{effect, probability}] at ≥ 5 %")
+    absorbed: list[dict] = Field(default_factory=list, description="[{effect, strength, bias: {parameter: "
+                                                                   "relative bias}}]")
+    materiality: dict | None = Field(None, description="gap size and the fitted effects' strengths, intervals "
+                                                       "and parameter biases")
+    discrepancy: dict | None = Field(None, description="where the unexplained part lies (phases, peak, shape)")
+
+
 class BreakerDiagnosisPublic(BreakerDiagnosisBrief):
     reused: bool = Field(False, description="an identical earlier request's diagnosis, not a new one")
-    result: dict | None = Field(None, description="service.diagnosis.diagnose's answer (docs/diagnosis.md)")
+    result: DiagnosisResult | dict | None = Field(None, description="service.diagnosis.diagnose's answer "
+                                                                    "(docs/diagnosis.md)")
 
 
 def _breaker(session, ref: str):

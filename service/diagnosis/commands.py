@@ -53,7 +53,7 @@ def expand(args_captures) -> list:
 
 def run_diagnose(args) -> int:
     from ..acquisition.capture_file import read_capture
-    from ..breaker_file import load_breaker
+    from ..breaker_file import load_breaker, load_effect_strengths
     from ..estimation.record import operation_capture
     from .diagnose import diagnose
     from .errors import DiagnosisError
@@ -72,7 +72,7 @@ def run_diagnose(args) -> int:
         caps = [operation_capture(c, breaker, args.operation)[0] for c in caps]
     except ValueError as exc:
         raise DiagnosisError(str(exc)) from None
-    result = diagnose(caps, breaker, args.operation, seed=args.seed)
+    result = diagnose(caps, breaker, args.operation, seed=args.seed, strengths=load_effect_strengths(args.breaker))
     if args.plot:
         _plot(result, caps[0], breaker, args)
     if args.json:

@@ -21,10 +21,13 @@ BLOCK_S = 1.0 / 8_000    # [s]
 # A capture's own state: the reduced parameters it estimates plus, for an opening, CO [s^-1], the
 # linear damping that grease and puffer gas change with the temperature from one operation to the
 # next (issue 29: held at the breaker file's value it leaves a 0.18σ gap at ±10 %, exactly a
-# catalogued viscous friction). The reduced closing (Eq. 7) has no velocity term, so no
+# catalogued viscous friction), and α0 [rad], the buffer engagement angle (±3 % leaves 0.20σ; it
+# is profiled in every hypothesis, so that a buffer effect is not fitted against an α0 the
+# reduced model bent towards it). The reduced closing (Eq. 7) has no velocity term, so no
 # counterpart: healthy closings of A, B and C already sit at the noise floor
 # (bench/healthy_floor.py). The onset delay τ [s] follows in the state vector x.
-STATE = {"open": ("AO", "BO", "DO", "EO", "CO"), "close": ("AC", "BC", "CC")}
+STATE = {"open": ("AO", "BO", "DO", "EO", "CO", "alpha0"), "close": ("AC", "BC", "CC")}
+ALPHA0_SPAN = 0.15   # ±15 % about the breaker file's α0 [rad]: a unit's buffer setting, 5× the ±3 % tolerance
 
 
 @dataclass
@@ -48,6 +51,24 @@ class WindowData:
     def weight(self) -> np.ndarray:
         """Per block 1/sd of the block mean [1/rad]: √count/σ."""
         return np.sqrt(self.count) / self.noise
+
+
+def design_state(breaker: Breaker, operation: str) -> np.ndarray:
+    """The breaker's design values of STATE[operation] (α0 the breaker's)."""
+    design = {**breaker.design_parameters(), "alpha0": float(breaker.alpha0)}
+    return np.array([float(design[k]) for k in STATE[operation]])
+
+
+def state_bounds(x, operation: str, tau: tuple[float, float]):
+    """Bounds of a state vector x (STATE then τ): ×0.2…×5 of each value, α0 ±ALPHA0_SPAN, τ in
+    ``tau`` [s]."""
+    x = np.asarray(x, float)
+    lo, hi = np.minimum(x * 0.2, x * 5.0), np.maximum(x * 0.2, x * 5.0)
+    if "alpha0" in STATE[operation]:
+        i = STATE[operation].index("alpha0")
+        lo[i], hi[i] = x[i] * (1 - ALPHA0_SPAN), x[i] * (1 + ALPHA0_SPAN)
+    lo[-1], hi[-1] = tau
+    return lo, hi
 
 
 def block_samples(sample_rate: float) -> int:
@@ -77,6 +98,7 @@ def model_curve(x, data: WindowData, breaker: Breaker, operation: str, effects=(
     names = STATE[operation]
     params = dict(zip(names, x[: len(names)]))
     co = params.pop("CO", 0.0)
+    a0 = params.pop("alpha0", None)
     tau = x[len(names)]
     tt = (data.t if t is None else t) - tau
     if operation == "close":
@@ -85,7 +107,7 @@ def model_curve(x, data: WindowData, breaker: Breaker, operation: str, effects=(
     else:
         rest = 0.0
     theta, _ = simulate_effects(operation, params, np.maximum(tt, 0.0), breaker, effects,
-                                sensor_side=sensor_side, CO=co if co > 0 else None)
+                                sensor_side=sensor_side, CO=co if co > 0 else None, alpha0=a0)
     return np.where(tt < 0, rest, theta)
 
 

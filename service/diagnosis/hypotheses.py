@@ -28,8 +28,8 @@ from scipy.optimize import least_squares
 
 from ..mechanics.effects import EFFECT_NAMES, OPERATIONS, PHYSICAL_UPPER as FIT_UPPER, REFERENCE_STRENGTHS as REALISTIC
 from ..mechanics.effects import SHAPES, SIGNED, shape_bounds, shape_defaults
-from .data import STATE, model_curve
-from .windows import Windows, linearise
+from .data import design_state, model_curve, state_bounds
+from .windows import Windows, linearise, tau_span
 
 SCREEN_NFEV = 8     # evaluations per deterministic start
 REFINE_NFEV = 12    # evaluations of the best start (the exact refit does the rest)
@@ -38,6 +38,7 @@ EXACT_NFEV = 30     # evaluations of the exact joint refit
 EXACT_TOP = 4       # singles refitted exactly: the best by the linearised BIC
 RELIN_NFEV = 12     # evaluations of each re-linearised refit
 PAIR_TOP = 3        # pairs are formed from the best singles (ΔBIC < 0) ...
+RESCREEN_TOP = 2    # singles screened again from every start after their exact refit
 
 # Deterministic extra starts of each family's shape (besides the prototype's defaults): forms far
 # from the default that a local fit from the default would not reach (signs, exponents, sides).
@@ -193,10 +194,10 @@ def refine_exact(windows: Windows, h: HypothesisFit, *, max_nfev: int = EXACT_NF
     lo_e, hi_e, sc_e, sl = _layout(effects)
     ke = lo_e.size
     p = caps[0].x.size
-    x0 = [np.clip(cw.x + cw.state_step(cw.r - sg), *_state_bounds(cw.x)) for cw, sg in zip(caps, h.signatures)]
+    x0 = [np.clip(cw.x + cw.state_step(cw.r - sg), *_state_bounds(cw.x, op)) for cw, sg in zip(caps, h.signatures)]
     z0 = np.concatenate([np.concatenate([np.concatenate([[h.phi[e][0]], h.phi[e][1]]) for e in effects])] + x0)
-    lo = np.concatenate([lo_e] + [_state_bounds(cw.x)[0] for cw in caps])
-    hi = np.concatenate([hi_e] + [_state_bounds(cw.x)[1] for cw in caps])
+    lo = np.concatenate([lo_e] + [_state_bounds(cw.x, op)[0] for cw in caps])
+    hi = np.concatenate([hi_e] + [_state_bounds(cw.x, op)[1] for cw in caps])
     scale = np.concatenate([sc_e] + [_state_scale(cw.x) for cw in caps])
     sizes = [cw.r.size for cw in caps]
     rows = np.cumsum([0] + sizes)
@@ -221,20 +222,14 @@ def refine_exact(windows: Windows, h: HypothesisFit, *, max_nfev: int = EXACT_NF
     if 2 * res.cost > nb + 5 * np.sqrt(2 * nb):
         # not at the noise floor: a strong effect can have pushed the reduced states far from
         # the truth (a contact wipe read as BC −40 %); also start from the breaker's design state
-        # (with the effects as fitted, and with each at its catalogue's nominal form)
-        design = br.design_parameters()
-        xd = np.array([design[k] for k in STATE[op]])
-        nominal = np.concatenate([np.concatenate([[0.5 * REALISTIC[e] if e != "rod_elasticity" else 1.0],
-                                                  shape_defaults(e)]) for e in effects])
-        for phi0 in (z0[:ke], nominal):
-            z1 = z0.copy()
-            z1[:ke] = phi0
-            for i in range(len(caps)):
-                z1[ke + i * p: ke + (i + 1) * p - 1] = xd
-            res1 = least_squares(fun, np.clip(z1, lo, hi), bounds=(lo, hi), x_scale=scale, max_nfev=max_nfev,
-                                 diff_step=1e-5, jac_sparsity=sp, tr_solver="lsmr")
-            if res1.cost < res.cost:
-                res = res1
+        xd = design_state(br, op)
+        z1 = z0.copy()
+        for i in range(len(caps)):
+            z1[ke + i * p: ke + (i + 1) * p - 1] = xd
+        res1 = least_squares(fun, np.clip(z1, lo, hi), bounds=(lo, hi), x_scale=scale, max_nfev=max_nfev,
+                             diff_step=1e-5, jac_sparsity=sp, tr_solver="lsmr")
+        if res1.cost < res.cost:
+            res = res1
     eff = _unpack(res.x[:ke], effects, sl)
     new_caps, sigs, per = [], [], []
     for i, cw in enumerate(caps):
@@ -250,11 +245,8 @@ def refine_exact(windows: Windows, h: HypothesisFit, *, max_nfev: int = EXACT_NF
     return HypothesisFit(effects, phi, h.k, float(sum(per)), per, sigs, captures=new_caps)
 
 
-def _state_bounds(x):
-    lo = np.asarray(x, float) * 0.2
-    hi = np.asarray(x, float) * 5.0
-    lo[-1], hi[-1] = -2e-3, 5e-3
-    return lo, hi
+def _state_bounds(x, operation):
+    return state_bounds(x, operation, tau_span(float(x[-1])))
 
 
 def _state_scale(x):
@@ -305,6 +297,18 @@ def fit_all(windows: Windows, catalogue) -> "Fits":
     for h in ranked[:EXACT_TOP]:
         if h.chi2 + h.k * np.log(n) < hyps["none"].chi2:
             hyps[h.name] = refine_exact(windows, h)
+    # The shape objective is multimodal (a contact touch's fraction moves a kink): the best
+    # singles still above the noise are screened again from every start at the states the exact
+    # fit found, and refitted (A's wipe group: χ² 1587 -> 1063 on 1005 blocks, the truth's 1013)
+    floor = n + 5.0 * np.sqrt(2.0 * n)
+    for h in sorted((hyps[e] for e in catalogue), key=lambda h: h.chi2)[:RESCREEN_TOP]:
+        if h.chi2 > floor:
+            e = h.effects[0]
+            hb = fit_hypothesis(windows, (e,), family_starts(e), caps=h.captures)
+            if hb.chi2 < h.chi2:
+                h2 = refine_exact(windows, hb)
+                if h2.chi2 < h.chi2:
+                    hyps[e] = h2
     singles = [hyps[e] for e in catalogue]
     lead = sorted((h for h in singles if h.chi2 + h.k * np.log(n) < hyps["none"].chi2),
                   key=lambda h: h.chi2 + h.k * np.log(n))[:PAIR_TOP]
@@ -315,6 +319,18 @@ def fit_all(windows: Windows, catalogue) -> "Fits":
         lead_caps = min((hyps[pair[0]], hyps[pair[1]]), key=lambda x: x.chi2).captures
         h = refine_exact(windows, fit_hypothesis(windows, pair, [z0], caps=lead_caps))
         hyps[h.name] = h
+    # A pair can beat its singles only because its refit converged further, not because both
+    # effects are there: each effect of the best pair is refitted alone from the pair's states
+    # and parameters, so that the evidence compares converged fits
+    pairs = [h for h in hyps.values() if len(h.effects) == 2]
+    if pairs:
+        bp = min(pairs, key=lambda h: h.chi2)
+        for e in bp.effects:
+            alone = fit_hypothesis(windows, (e,), [np.concatenate([[bp.phi[e][0]], bp.phi[e][1]])],
+                                   caps=bp.captures)
+            alone = refine_exact(windows, alone)
+            if alone.chi2 < hyps[e].chi2:
+                hyps[e] = alone
     fits = Fits(windows, hyps)
     best = fits.best_catalogued(n)
     hyps["outside_catalogue"] = outside_fit(windows, best)

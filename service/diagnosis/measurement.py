@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..mechanics.effects import OPERATIONS
-from .data import STATE, WindowData
+from .data import STATE, WindowData, design_state
 from .hypotheses import Fits, signature
 from .windows import linearise
 
@@ -86,7 +86,7 @@ def design_window(breaker, operation, noise):
     """A noise-free window of ``operation`` at the breaker's design state (8 kHz blocks)."""
     from .data import model_curve
     design = breaker.design_parameters()
-    x = np.array([design[k] for k in STATE[operation]] + [0.0])
+    x = np.append(design_state(breaker, operation), 0.0)
     t = np.arange(0.0, 0.06, 16 / 128_000)
     d = WindowData(t, np.zeros_like(t), np.full(t.size, 16.0), noise, 0.0, float(design["DC"]), "design")
     d.y = model_curve(x, d, breaker, operation)

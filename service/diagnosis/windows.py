@@ -1,8 +1,8 @@
 """Stage 1 — the captures' data: per capture the valid window (block means), its noise floor,
 the reduced model's polished state, the whitened residual and the state Jacobian.
 
-State: each capture's reduced parameters plus CO and τ (data.STATE), and the unit's α0 for an
-opening (``with_unit_alpha0``): the complete nuisance state of issue 29.
+State: each capture's reduced parameters plus, for an opening, CO and α0, and τ (data.STATE):
+the complete nuisance state of issue 29.
 
 Noise: per capture, σ_i is the fitter's pre-trigger standard deviation of the travel (the
 sensor at rest before the latch releases, ~2500 samples: its relative standard error is ~1.4 %).
@@ -22,7 +22,7 @@ from scipy.stats import chi2
 
 from ..mechanics.breaker import Breaker
 from ..mechanics.coordinates import operation_coordinate
-from .data import BLOCK_S, STATE, WindowData, model_curve, window_data
+from .data import BLOCK_S, STATE, WindowData, design_state, model_curve, state_bounds, window_data
 from .errors import DiagnosisError
 
 BASE_NFEV = 30      # polish of the reduced model (least_squares evaluations)
@@ -94,7 +94,7 @@ def prepare(captures, breaker: Breaker, operation: str, *, fitter=None, seed: in
             name = cap.source or "capture"
             raise DiagnosisError(msg if msg.startswith(name) else f"{name}: {msg}") from None
     breaker = with_estimated_structure(breaker, [fr for _, fr in fits])
-    design = breaker.design_parameters()
+    design = dict(zip(STATE[operation], design_state(breaker, operation)))
     datas, starts = [], []
     for cap, fr in fits:
         data = window_data(cap, fr, breaker, operation)
@@ -103,42 +103,13 @@ def prepare(captures, breaker: Breaker, operation: str, *, fitter=None, seed: in
                                  f"{1e3 * (data.t[-1] - data.t[0]) if data.t.size else 0.0:.1f} ms: too short to "
                                  f"diagnose (at least {1e3 * MIN_BLOCKS * BLOCK_S:.1f} ms)")
         datas.append(data)
-        starts.append(np.array([fr.parameters.get(k, design[k]) for k in STATE[operation]] + [fr.onset_delay_s]))
-    if operation == "open":
-        breaker = with_unit_alpha0(breaker, datas, starts)
+        starts.append(np.array([fr.parameters.get(k, design[k]) for k in STATE[operation]]
+                               + [fr.onset_delay_s]))
     out = []
     for data, x0 in zip(datas, starts):
         x = baseline(x0, data, breaker, operation)
         out.append(linearise(x, data, breaker, operation))
     return Windows(operation, breaker, out)
-
-
-ALPHA0_SPAN = 0.15   # ±15 % about the breaker file's α0: a unit's buffer setting, well past ±3 % tolerances
-
-
-def with_unit_alpha0(breaker: Breaker, datas, starts) -> Breaker:
-    """``breaker`` with the unit's own buffer engagement angle α0 [rad]: each capture's reduced
-    state, CO, τ and α0 polished together, the median α0 over the captures (one unit, one α0;
-    the median is robust to one capture a defect pulls). α0 ±3 % left at the file's value is a
-    0.2σ gap that a catalogued buffer effect would take (issue 29)."""
-    import dataclasses
-
-    a0 = float(breaker.alpha0)
-    found = []
-    for data, x0 in zip(datas, starts):
-        lo, hi = _bounds(x0)
-        lo, hi = np.append(lo, a0 * (1 - ALPHA0_SPAN)), np.append(hi, a0 * (1 + ALPHA0_SPAN))
-        scale = np.append(np.maximum(np.abs(x0), 1e-6), a0 * 0.01)
-        scale[-2] = 1e-4
-
-        def fun(z, data=data):
-            b = dataclasses.replace(breaker, alpha0=float(z[-1]))
-            return _residual(z[:-1], data, b, "open")
-
-        z0 = np.clip(np.append(x0, a0), lo, hi)
-        res = least_squares(fun, z0, bounds=(lo, hi), x_scale=scale, max_nfev=BASE_NFEV, diff_step=1e-6)
-        found.append(float(res.x[-1]))
-    return dataclasses.replace(breaker, alpha0=float(np.median(found)))
 
 
 def with_estimated_structure(breaker: Breaker, fits) -> Breaker:
@@ -181,11 +152,8 @@ def linearise(x, data: WindowData, breaker: Breaker, operation: str) -> CaptureW
     return CaptureWindow(data, np.asarray(x, float), np.where(np.isfinite(r), r, 0.0), J, Q)
 
 
-def _bounds(x0):
-    lo = np.asarray(x0, float) * 0.2
-    hi = np.asarray(x0, float) * 5.0
-    lo[-1], hi[-1] = tau_span(float(x0[-1]))
-    return lo, hi
+def _bounds(x0, operation):
+    return state_bounds(x0, operation, tau_span(float(x0[-1])))
 
 
 def _residual(x, data, breaker, operation):
@@ -195,7 +163,7 @@ def _residual(x, data, breaker, operation):
 
 def fit_reduced(x0, data, breaker, operation, max_nfev=BASE_NFEV):
     """Polish the reduced model (state and τ) on the blocks, from ``x0``."""
-    lo, hi = _bounds(x0)
+    lo, hi = _bounds(x0, operation)
     scale = np.maximum(np.abs(x0), 1e-6)
     scale[-1] = 1e-4
     res = least_squares(lambda x: _residual(x, data, breaker, operation), np.clip(x0, lo, hi),
@@ -210,8 +178,7 @@ def baseline(x0, data, breaker, operation):
     x, cost = fit_reduced(x0, data, breaker, operation)
     if chi2.sf(cost, data.t.size) >= GAP_P:
         return x
-    design = breaker.design_parameters()
-    xd = np.array([design[k] for k in STATE[operation]] + [0.0])
+    xd = np.append(design_state(breaker, operation), 0.0)
     lo, hi = tau_span(float(x0[-1]))
     taus = np.linspace(lo + 0.5e-3, hi - 0.5e-3, 25)
     costs = []

@@ -12,6 +12,7 @@ import json
 import logging
 import threading
 
+from service.breaker_file import effect_strengths
 from service.errors import UserError
 from service.storage import crud, crud_diagnoses
 from service.storage.db import cached_engine, session_factory
@@ -121,7 +122,9 @@ def run_breaker_diagnosis_job(diagnosis_id: int, database_url: str) -> str:
         row = crud_diagnoses.claim(session, diagnosis_id=diagnosis_id)
         if row is None:
             return "skipped"
-        breaker = crud.breaker_model(session.get(BreakerRow, row.breaker_id))
+        brow = session.get(BreakerRow, row.breaker_id)
+        breaker = crud.breaker_model(brow)
+        strengths = effect_strengths(brow.breaker_file, source=f"of breaker {brow.name!r}")
         kind = row.operation
         ops = [session.get(OperationRow, i) for i in row.operation_ids]
         jobs = [(op.id, op.capture_path, op.capture_sha256) for op in ops if op is not None]
@@ -134,7 +137,7 @@ def run_breaker_diagnosis_job(diagnosis_id: int, database_url: str) -> str:
         if not captures:
             raise diagnosis.DiagnosisError("none of the selected captures can be read any more: "
                                            + "; ".join(f"operation {g['operation_id']}: {g['reason']}" for g in gone))
-        out = diagnosis.diagnose([c for _, c in captures], breaker, kind)
+        out = diagnosis.diagnose([c for _, c in captures], breaker, kind, strengths=strengths)
         out["operation_ids"] = [i for i, _ in captures]
         result = json.loads(json.dumps(out, default=_plain, allow_nan=True), parse_constant=lambda _: None)
     except diagnosis.DiagnosisError as exc:

@@ -9,6 +9,9 @@ from __future__ import annotations
 
 import math
 
+from service.diagnosis.report import percent
+from service.mechanics.effects import in_words
+
 BAR_W = 250.0  # px of the longest bar in the "where" chart
 
 
@@ -84,7 +87,8 @@ def _params(reduced, corrected) -> dict:
         cm, _, _ = stats(cor, n)
         change = (cm - rm) / abs(rm) if cm is not None and rm not in (None, 0.0) else None
         rows.append({"name": n, "reduced": rm, "lo": rlo if len(red) > 1 else None,
-                     "hi": rhi if len(red) > 1 else None, "corrected": cm, "change": change})
+                     "hi": rhi if len(red) > 1 else None, "corrected": cm, "change": change,
+                     "change_text": percent(change) if change is not None else ""})
     return {"rows": rows, "corrected": bool(cor), "n": len(red)}
 
 
@@ -124,10 +128,30 @@ def view(r: dict | None) -> dict | None:
     where = _where(r)
     messages = [str(r["message"])] if r.get("message") else []
     messages += [str(w) for w in r.get("warnings") or [] if isinstance(w, str)]
-    mild = [str(m) for m in r.get("mild") or [] if isinstance(m, str)] if isinstance(r.get("mild"), list) else []
+    for a in absorbed:
+        a["bias_text"] = [f"{k} {percent(x)}" for k, x in a["bias"].items() if x is not None]
+    names = {n for n, _ in probabilities} | {x["effect"] for x in rivals} | {a["effect"] for a in absorbed}
+    names |= {str(e) for e in effects} | ({str(r["answer"])} if r.get("answer") else set())
+    mat = r.get("materiality") if isinstance(r.get("materiality"), dict) else {}
+    material = [{"effect": str(e.get("effect", "?")), "strength": _num(e.get("strength")),
+                 "interval": [_num(x) for x in e.get("strength_interval") or []],
+                 "contribution": _num(e.get("contribution_sigma")), "material": bool(e.get("material")),
+                 "bias_text": [f"{k} {percent(x)}" for k, x in (e.get("bias") or {}).items() if _num(x) is not None]}
+                for e in mat.get("effects") or [] if isinstance(e, dict)]
+    names |= {m["effect"] for m in material}
+    disc = r.get("discrepancy") if isinstance(r.get("discrepancy"), dict) else {}
+    peak = disc.get("peak") if isinstance(disc.get("peak"), dict) else {}
     return {"status": status, "effects": [str(e) for e in effects], "probabilities": probabilities,
             "answer": str(r["answer"]) if r.get("answer") else None,
-            "answer_probability": _num(r.get("answer_probability")), "mild": mild,
+            "answer_probability": _num(r.get("answer_probability")),
+            "raw_probability": _num(r.get("raw_probability")),
+            "words": {n: in_words(n) for n in names},
+            "gap_sigma": _num(mat.get("gap_sigma")),
+            "gap_interval": [_num(x) for x in mat.get("gap_sigma_interval") or []],
+            "material": material,
+            "discrepancy": {"phase": peak.get("phase"), "t_ms": _num(peak.get("t_ms")), "mrad": _num(peak.get("mrad")),
+                            "shape": disc.get("shape"), "log_bf": _num(disc.get("log_bayes_factor"))}
+            if peak.get("phase") else None,
             "rivals": rivals, "absorbed": absorbed, "far": far, "where": where, "bars": _bars(where),
             "params": _params(reduced, corrected), "next": nxt, "messages": messages,
             "captures": len(r["captures"]) if isinstance(r.get("captures"), list) else None}

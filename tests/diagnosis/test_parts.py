@@ -146,3 +146,21 @@ def test_measurement_separation():
     assert _separation([cw], [a], [3 * a]) == pytest.approx(0.0)          # b rescaled mimics a exactly
     b = np.array([0.0, 0.0, 2.0])
     assert _separation([cw], [a], [b]) == pytest.approx(min(5.0, 4.0))    # orthogonal: the smaller one is left
+
+
+def test_breaker_file_effects_section(tmp_path):
+    from pathlib import Path
+
+    from service.breaker_file import BreakerFileError, effect_strengths, load_effect_strengths
+    from service.mechanics.effects import REFERENCE_STRENGTHS
+
+    ref = Path(__file__).resolve().parents[2] / "config/breakers/reference-252kV.toml"
+    assert load_effect_strengths(ref) == REFERENCE_STRENGTHS      # the reference file states them
+    text = ref.read_text().split("[effects]")[0]
+    assert effect_strengths(text + "[effects]\norifice_buffer = 1.2\n")["orifice_buffer"] == 1.2
+    assert effect_strengths(text)["puffer_gas"] == REFERENCE_STRENGTHS["puffer_gas"]
+    with pytest.raises(BreakerFileError, match=r"\[effects\] orifce_buffer: is not a known key"):
+        effect_strengths(text + "[effects]\norifce_buffer = 1.2\n", source="x.toml")
+    with pytest.raises(BreakerFileError, match=r"\[effects\] puffer_gas: .*less than or equal to 1"):
+        effect_strengths(text + "[effects]\npuffer_gas = 7\n", source="x.toml")
+    assert effect_strengths(text + "[effects]\nsensor_nonlinearity = -0.01\n")["sensor_nonlinearity"] == -0.01

@@ -41,7 +41,8 @@ def test_view_reads_the_issue_20_shape():
     assert (ao["name"], ao["reduced"], ao["corrected"]) == ("AO", 3400.0, 3420.0) and ao["lo"] is None
     assert abs(do["change"] - (39.5 - 41.0) / 41.0) < 1e-12
     assert v["next"][0]["separates"] == ["viscous_friction", "orifice_buffer"]
-    assert v["absorbed"] == [{"effect": "puffer_gas", "bias": {"DO": 0.021}}]
+    assert v["absorbed"] == [{"effect": "puffer_gas", "bias": {"DO": 0.021}, "bias_text": ["DO +2.1 %"]}]
+    assert v["words"]["viscous_friction"] == "viscous bearing friction"
 
 
 def test_parameters_of_several_captures_are_summarised_and_an_unchanged_correction_is_dropped():
@@ -75,10 +76,12 @@ def test_template_draws_every_part_escaped():
     assert "<b>odd</b>" not in html and "&lt;b&gt;odd&lt;/b&gt;" in html
     assert html.count('class="bar bar-before"') == 2 and html.count('class="bar-after"') == 2
     assert "10 openings below 0 °C" in html and "-14.2" in html
-    assert "Rivals: sensor_nonlinearity (0.050)" in html
-    assert "puffer_gas" in html and "two effects at once" in html
-    assert "orifice_buffer+viscous_friction</strong>, probability 0.90" in html
-    assert "Present but mild: sensor_nonlinearity" in html
+    assert 'Rivals: <span title="sensor_nonlinearity">travel-sensor nonlinearity</span> (0.050)' in html
+    assert 'title="puffer_gas">puffer gas compression' in html and "two effects at once" in html
+    assert "DO +2.1 %" in html and "-0.0 %" not in html
+    assert ('title="orifice_buffer+viscous_friction">orifice buffer (damping ∝ speed²) + viscous bearing friction'
+            '</strong>, probability <span id="bdiag-probability">0.900</span>') in html
+    assert "Present but mild" not in html          # no size gate: materiality is a flag beside the answer
     assert 'id="bdiag-before">3.000<' in html and 'id="bdiag-after">1.600<' in html
     assert "<th>Corrected</th>" in html and "bdiag-no-correction" not in html
     assert "-3.7 %" in html  # DO 41.0 -> 39.5
