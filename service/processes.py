@@ -43,6 +43,11 @@ class _Pool(ProcessPoolExecutor):
                 p.terminate()
         for p in processes:
             p.join(timeout_s)
+        # the executor's manager thread ends once it sees its workers gone: wait for it too, so
+        # a stopped pool leaves no thread behind (the stdlib names it only "Thread-N")
+        manager = getattr(self, "_executor_manager_thread", None)
+        if manager is not None:
+            manager.join(timeout_s)
 
 
 def process_pool(max_workers: int, *, initializer=None, start_method: str | None = "spawn") -> ProcessPoolExecutor:

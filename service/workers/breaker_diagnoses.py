@@ -59,7 +59,10 @@ class BreakerDiagnosisRunner:
     def shutdown(self) -> None:
         with self._lock:
             if self._pool is not None:
-                self._pool.shutdown(wait=self.kind == "inline", cancel_futures=True)
+                if self.kind == "inline":
+                    self._pool.shutdown(wait=True, cancel_futures=True)
+                else:  # a running diagnosis is ended, not awaited: a GET submits it again (ensure)
+                    self._pool.terminate_workers()
                 self._pool = None
             if self._celery is not None:
                 self._celery.close()

@@ -36,5 +36,5 @@ class DiagnosisRunner:
     def shutdown(self) -> None:
         with self._lock:
             if self._pool is not None:
-                self._pool.shutdown(wait=False, cancel_futures=True)
+                self._pool.terminate_workers()  # a running diagnosis is ended, not awaited
                 self._pool = None
