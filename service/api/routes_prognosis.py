@@ -52,7 +52,8 @@ class ParameterPrognosis(BaseModel):
     horizon_operations: float | None
     probability_within_horizon: float | None = Field(description="P(crossing before the horizon)")
     reference_temperature_c: float | None = Field(description="values are compensated to this temperature")
-    status: str = Field(description='"ok" or "no trend" (why in reason)')
+    status: str = Field(description='"ok"; "crossed": the trend is past the limit now (service is due); '
+                                    'or "no trend" (why in reason)')
     reason: str
     fan: dict = Field(description="projected level (p05, median, p95) over operations from the basis's "
                                   "first fit, and the observed compensated values: the page's fan chart")

@@ -70,7 +70,8 @@ class Prognosis:
     probability_within_horizon : P(crossing before the horizon) [-]
     fan : the projected level, {"operations": [...], "p05", "median", "p95"} (operation counts
         from the basis's first fit), and "observed" compensated values of the basis
-    status : "ok" | "no trend" (reason in ``reason``)
+    status : "ok" | "crossed" (the trend is past the limit now: service is due) | "no trend"
+        (reason in ``reason``)
     """
 
     parameter: str
@@ -180,14 +181,19 @@ def prognose(state: DriftState, history: Sequence[FitObservation], limit: Parame
     last_time = history[-1].time
     dates = [last_time + timedelta(days=x / rate) if (x is not None and rate) else None for x in within]
     p_within = float(trend.crossing_probability(bound, direction, n_now + horizon))
+    level_now = float(trend.level(n_now)[0])
+    past = level_now < bound if direction == "falling" else level_now > bound
     return Prognosis(
-        name, bound, direction, text, baseline=model.centre, current=float(trend.level(n_now)[0]),
+        name, bound, direction, text, baseline=model.centre, current=level_now,
         operations_to_limit=Quantiles(*within) if within[1] is not None else None,
         date_to_limit=Quantiles(*dates) if dates[1] is not None else None,
         basis=basis, basis_operations=len(n), rate_per_day=rate,
         horizon_operations=horizon, horizon_years=horizon_years if rate else None,
         probability_within_horizon=p_within,
-        reference_temperature=model.t_mean, fan=fan(trend, n, y, n_now, ops, horizon))
+        reference_temperature=model.t_mean, fan=fan(trend, n, y, n_now, ops, horizon),
+        status="crossed" if past else "ok",
+        reason=f"the trend is past the limit now ({level_now:.4g} against {bound:.4g}): service is due"
+        if past else "")
 
 
 def fan(trend: Trend, n: np.ndarray, y: np.ndarray, n_now: float, ops: list[float],

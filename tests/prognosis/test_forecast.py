@@ -59,6 +59,15 @@ def test_leak_gives_quantiles_around_the_truth_and_dates_from_the_rate():
     assert p.fan["median"][0] > p.fan["median"][-1]  # the projection falls
 
 
+def test_a_limit_already_crossed_says_so():
+    obs = history(150, leak_from=100)  # -1 %/op: past -25 % from op 126 on
+    p = prognose(detector(obs), obs, LIMIT)
+    assert p.status == "crossed" and "service is due" in p.reason and p.current < p.limit
+    assert p.operations_to_limit.median == 0.0
+    early = prognose(detector(obs[:120]), obs[:120], LIMIT)
+    assert early.status == "ok" and early.reason == ""
+
+
 def test_temperature_of_the_last_operation_does_not_move_the_prognosis():
     """Two breakers alike but for the last opening's temperature (and so its raw value): the
     compensated prognosis is the same to within the slope's own uncertainty."""

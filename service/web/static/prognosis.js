@@ -6,6 +6,7 @@
   function fmt(x) { return x === null || x === undefined ? "none" : (Math.round(x * 10) / 10).toLocaleString("en"); }
 
   function summary(p) {
+    if (p.status === "crossed") { return p.parameter + " past " + p.limit_text + " (" + fmt(p.limit) + "): " + p.reason; }
     if (p.status !== "ok") { return p.parameter + ": no prognosis (" + p.reason + ")"; }
     var q = p.operations_to_limit;
     var head = p.parameter + " to " + p.limit_text + " (" + fmt(p.limit) + "): ";
@@ -65,7 +66,7 @@
           cap.textContent = summary(p);
           fig.appendChild(cap);
           charts.appendChild(fig);
-          if (p.status === "ok") { chart(fig, p); }
+          if (p.status === "ok" || p.status === "crossed") { chart(fig, p); }
         });
       })
       .catch(function (e) { note.textContent = "The prognosis could not be loaded: " + e.message; });
