@@ -124,6 +124,12 @@ def test_breaker_page_alarm_line_and_summary_have_units(demo, browser):
                 assert re.search(re.escape(number) + r" ?(s⁻²|s⁻¹|%|–)", line), (number, line)
         # the operations table's numeric column names its unit in the header
         assert "mrad" in page.locator("#operations thead").inner_text().lower()
+        # the drift charts' legends give the thresholds in σ to 3 significant figures
+        page.wait_for_selector("[data-drift] .u-legend")
+        legends = " ".join(page.locator("[data-drift] .u-legend").all_inner_texts())
+        thresholds = re.findall(r"(?:warning|alarm) ([\d.]+)", legends)
+        assert thresholds and all(len(t.replace(".", "").lstrip("0")) <= 4 for t in thresholds), legends
+        assert "σ" in legends, legends
         screenshot(page, "breaker")
 
 

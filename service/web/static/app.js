@@ -160,10 +160,10 @@
       series: [{},
         { label: "CUSUM", stroke: "#38424f", width: 1.6, spanGaps: false, points: { show: false },
           fill: "rgba(56,66,79,0.06)" },
-        { label: "warning " + d.warning, stroke: COLORS.warn, width: 1.4, dash: [6, 4], points: { show: false } },
-        { label: "alarm " + d.alarm, stroke: COLORS.alarm, width: 1.4, dash: [6, 4], points: { show: false } }],
+        { label: "warning " + fmt(d.warning, 3) + " σ", stroke: COLORS.warn, width: 1.4, dash: [6, 4], points: { show: false } },
+        { label: "alarm " + fmt(d.alarm, 3) + " σ", stroke: COLORS.alarm, width: 1.4, dash: [6, 4], points: { show: false } }],
       scales: { x: { time: true }, y: { range: function (u, lo, hi) { return [0, Math.max(hi, d.alarm * 1.25)]; } } },
-      axes: [TIME_AXIS, { size: 64, label: "z", labelSize: 16 }],
+      axes: [TIME_AXIS, { size: 64, label: "CUSUM [σ]", labelSize: 16 }],
       cursor: { sync: { key: "breaker" } },
       hooks: { draw: [markerHook(p.alarms || [])] } };
     var u = draw("drift-" + name, el, opts, [d.t, d.s, constant(d.t, d.warning), constant(d.t, d.alarm)]);
