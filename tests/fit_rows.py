@@ -9,13 +9,15 @@ import numpy as np
 
 
 def store_leak(Session, settings, *, t0: datetime, step: timedelta, n: int = 32, start: int = 25,
-               breaker_id: int = 1, key: str = "leak") -> None:
+               breaker_id: int = 1, key: str = "leak") -> list:
     """Openings 0..n-1 of breaker ``breaker_id`` every ``step`` from ``t0``: DO 39.5 s^-1 with a
-    0.3 % spread that falls 2 %/opening from ``start``; BO flat (0.2 % spread)."""
+    0.3 % spread that falls 2 %/opening from ``start``; BO flat (0.2 % spread). Returns the drift
+    update's events of each opening."""
     from service.jobs.fit import update_drift
     from service.storage import crud
 
     rng = np.random.default_rng(3)
+    events = []
     for i in range(n):
         do = 39.5 * (1 + rng.normal(0, 0.003)) * (0.98 ** max(0, i - start))
         with Session() as s, s.begin():
@@ -27,4 +29,5 @@ def store_leak(Session, settings, *, t0: datetime, step: timedelta, n: int = 32,
             crud.store_fit_result(s, operation_id=op.id, curve=None, result={
                 "parameters": {"AO": 3424.0, "BO": 4806.0 * (1 + rng.normal(0, 0.002)), "DO": do, "EO": 3950.0},
                 "ci95": {"DO": [do - 0.3, do + 0.3], "BO": [4790.0, 4822.0]}, "identifiable": True})
-            update_drift(s, breaker_id=breaker_id, settings=settings)
+            events.append(update_drift(s, breaker_id=breaker_id, settings=settings))
+    return events

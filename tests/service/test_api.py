@@ -229,30 +229,14 @@ def test_malformed_uploads_are_4xx_and_leave_db_unchanged(env, breaker, case):
 
 # -- alarms --------------------------------------------------------------------------------------
 def test_do_leak_raises_alarm_that_can_be_acknowledged_and_reset(env, breaker):
-    from service.jobs.fit import update_drift
+    from tests.fit_rows import store_leak
 
     # Parameter history straight into the fit table (the drift detector is tested on its own);
     # ten healthy fits form the baseline in this test's settings, then DO falls 2 %/operation.
-    import numpy as np
-
-    rng = np.random.default_rng(3)
-    t0 = datetime.now(timezone.utc) - timedelta(hours=1)
     settings = env.settings.drift_settings.__class__.from_mapping({**env.settings.alarms, "baseline_n": 10})
-    raised_at = None
-    for i in range(30):
-        do = 39.5 * (1 + rng.normal(0, 0.003)) * (0.98 ** max(0, i - 14))
-        with env.Session() as s, s.begin():
-            op, _ = crud.create_operation(s, capture_key=f"k{i}", breaker_id=1, kind="open",
-                                          occurred_at=t0 + timedelta(seconds=i), source="replay",
-                                          capture_path="/nonexistent.csv", capture_sha256="0" * 64, flags=[],
-                                          sample_rate=1.0, n_samples=1)
-            crud.claim_fit(s, operation_id=op.id, worker="test")
-            crud.store_fit_result(s, operation_id=op.id, curve=None, result={
-                "parameters": {"AO": 3424.0, "BO": 4806.0 * (1 + rng.normal(0, 0.002)), "DO": do, "EO": 3950.0},
-                "ci95": {"DO": [do - 0.3, do + 0.3], "BO": [4790.0, 4822.0]}, "identifiable": True})
-            events = update_drift(s, breaker_id=1, settings=settings)
-            if any(e.kind == "raised" for e in events) and raised_at is None:
-                raised_at = i
+    events = store_leak(env.Session, settings, t0=datetime.now(timezone.utc) - timedelta(hours=1),
+                        step=timedelta(seconds=1), n=30, start=14, key="k")
+    raised_at = next((i for i, ev in enumerate(events) if any(e.kind == "raised" for e in ev)), None)
     assert raised_at is not None and 15 <= raised_at <= 25
     alarms = env.client.get("/api/v1/alarms?state=active", headers=env.h("reader")).json()
     assert [a["parameter"] for a in alarms] == ["DO"]
