@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import time
 
+import numpy as np
+
 from ..mechanics.breaker import Breaker
 from ..mechanics.effects import EFFECT_NAMES
 from .decision import decide
@@ -62,6 +64,17 @@ def diagnose(captures, breaker: Breaker, operation: str, *, effects=None, seed: 
     if not catalogue:
         raise DiagnosisError(f"none of the given effects acts on an {operation} operation")
     windows = prepare(list(captures), breaker, operation, fitter=fitter, seed=seed)
+    try:
+        return _diagnose(windows, catalogue, strengths, next_measurements, t0)
+    except (ArithmeticError, ValueError, np.linalg.LinAlgError):
+        # a numerical failure is the records' (non-finite model values, a fit that did not
+        # converge): said in words naming them, never the library's message
+        names = ", ".join(c.data.source for c in windows.captures)
+        raise DiagnosisError(f"{names}: the joint fit of the hypotheses did not converge on these records "
+                             f"(a model value or a residual is not a number): refused, no diagnosis") from None
+
+
+def _diagnose(windows, catalogue, strengths, next_measurements, t0):
     fits = fit_all(windows, catalogue)
     ev = evidence(fits)
     dec = decide(fits, ev, catalogue, strengths)

@@ -85,19 +85,30 @@ def prepare(captures, breaker: Breaker, operation: str, *, fitter=None, seed: in
     if fitter is None:
         from ..estimation import fit_capture as fitter
     fits = []
-    for cap in captures:
+    for raw in captures:
+        cap, valid = valid_samples(raw)
         check_breaker(cap, breaker, operation)
+        name = cap.source or "capture"
         try:
-            fits.append((cap, fitter(cap, breaker, operation, seed=seed)))
+            fr = fitter(cap, breaker, operation, seed=seed)
         except ValueError as exc:
             msg = str(exc)
-            name = cap.source or "capture"
+            if not np.all(valid) or "nan" in msg.lower() or "inf" in msg.lower():
+                raise DiagnosisError(f"{name}: the reduced model's fit failed on this record "
+                                     f"({int((~valid).sum())} samples not numbers): refused") from None
             raise DiagnosisError(msg if msg.startswith(name) else f"{name}: {msg}") from None
-    breaker = with_estimated_structure(breaker, [fr for _, fr in fits])
+        except (ArithmeticError, np.linalg.LinAlgError, RuntimeError):
+            raise DiagnosisError(f"{name}: the reduced model's fit did not converge on this record: "
+                                 f"refused") from None
+        if not (np.isfinite(getattr(fr, "noise_rad", np.nan)) and getattr(fr, "noise_rad", 0.0) > 0):
+            raise DiagnosisError(f"{name}: the record's noise floor could not be estimated (no valid "
+                                 f"samples at rest before the motion): refused")
+        fits.append((cap, fr, valid))
+    breaker = with_estimated_structure(breaker, [fr for _, fr, _ in fits])
     design = dict(zip(STATE[operation], design_state(breaker, operation)))
     datas, starts = [], []
-    for cap, fr in fits:
-        data = window_data(cap, fr, breaker, operation)
+    for cap, fr, valid in fits:
+        data = window_data(cap, fr, breaker, operation, valid=valid)
         if data.t.size < MIN_BLOCKS:
             raise DiagnosisError(f"{data.source}: the valid window lasts only "
                                  f"{1e3 * (data.t[-1] - data.t[0]) if data.t.size else 0.0:.1f} ms: too short to "
@@ -110,6 +121,35 @@ def prepare(captures, breaker: Breaker, operation: str, *, fitter=None, seed: in
         x = baseline(x0, data, breaker, operation)
         out.append(linearise(x, data, breaker, operation))
     return Windows(operation, breaker, out)
+
+
+# A record whose travel holds more samples that are not numbers (∞, NaN: an over-range, a
+# dropped frame) than this share is refused: what is left no longer holds the motion's phases.
+MAX_INVALID = 0.2
+
+
+def valid_samples(cap):
+    """``cap`` with its non-finite travel samples bridged linearly (for the reduced fit, which
+    needs a uniform series), and the mask of the valid ones; the diagnosis's evidence later uses
+    only blocks made of valid samples (``data.window_data``). Refused in words when too few are
+    valid."""
+    import dataclasses
+
+    y = np.asarray(cap.travel, float)
+    valid = np.isfinite(y)
+    mask = getattr(cap, "mask", None)          # an over-range mask from the reader, when it has one
+    if mask is not None and np.shape(mask) == y.shape:
+        valid &= ~np.asarray(mask, bool)
+    if valid.all():
+        return cap, valid
+    name = cap.source or "capture"
+    bad = int((~valid).sum())
+    if valid.sum() < max(4, (1.0 - MAX_INVALID) * y.size):
+        raise DiagnosisError(f"{name}: {bad} of {y.size} travel samples are not numbers (∞ or NaN, e.g. "
+                             f"over-range or dropped): too few valid samples to diagnose this record")
+    idx = np.arange(y.size)
+    filled = np.interp(idx, idx[valid], y[valid])
+    return dataclasses.replace(cap, travel=filled), valid
 
 
 def with_estimated_structure(breaker: Breaker, fits) -> Breaker:
