@@ -3,8 +3,11 @@
 A one-way pipeline, one module per stage:
 
 1. ``windows``    the captures' data: valid windows, noise, reduced fit, state Jacobian;
-2. ``hypotheses`` joint fits per hypothesis (none, each family, pairs, outside the catalogue);
-3. ``evidence``   posterior probabilities (marginal likelihoods under the in-motion noise model);
+2. ``predictive`` the evidence, the capture as its unit: each hypothesis (none, each family's
+                  subspace, pairs, a shared discrepancy) scored by leave-one-capture-out predictive
+                  density, combined by pseudo-BMA+;
+3. ``hypotheses`` the nonlinear refit of the leading hypotheses only, to report how far the gap
+                  shrinks (``evidence``: the noise model's figures beside the weights);
 4. ``decision``   the one rule: state what reaches P_NAME (calibrated), else ambiguous;
 5. ``report``     the JSON-ready result (+ ``measurement``: the recording that would decide).
 """
@@ -20,7 +23,8 @@ from ..mechanics.effects import EFFECT_NAMES
 from .decision import decide
 from .errors import DiagnosisError
 from .evidence import evidence
-from .hypotheses import catalogue_for, fit_all, holdout
+from .hypotheses import catalogue_for, fit_reported, holdout
+from .predictive import score
 from .measurement import next_measurement
 from .report import build
 from .windows import prepare
@@ -75,9 +79,10 @@ def diagnose(captures, breaker: Breaker, operation: str, *, effects=None, seed: 
 
 
 def _diagnose(windows, catalogue, strengths, next_measurements, t0):
-    fits = fit_all(windows, catalogue)
-    ev = evidence(fits)
+    scores = score(windows, catalogue)
+    fits = fit_reported(windows, scores, rivals=2 if next_measurements else 1)
+    ev = evidence(fits, scores)
     dec = decide(fits, ev, catalogue, strengths)
     nm = next_measurement(fits, dec.rivals) if (next_measurements and dec.status == "ambiguous") else []
     ho = holdout(windows, fits.hypotheses[dec.hypothesis]) if dec.status == "named" else None
-    return build(fits, ev, dec, nm, ho, time.perf_counter() - t0)
+    return build(fits, ev, dec, nm, ho, time.perf_counter() - t0, scores)

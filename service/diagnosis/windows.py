@@ -185,11 +185,38 @@ def linearise(x, data: WindowData, breaker: Breaker, operation: str) -> CaptureW
         cols.append((model_curve(xp, data, breaker, operation) - m0) * w / h)
     J = np.column_stack(cols)
     J = np.where(np.isfinite(J), J, 0.0)
-    # orthonormal basis of what the state can move; a direction the data cannot see (a damping
-    # that acts nowhere in this window) is dropped rather than turned into a random column
-    U, sv, _ = np.linalg.svd(J, full_matrices=False)
+    S = sensor_columns(x, data, breaker, operation, m0)
+    # orthonormal basis of what the nuisance can move (the state, τ and the sensor); a direction
+    # the data cannot see (a damping that acts nowhere in this window) is dropped rather than
+    # turned into a random column
+    N = np.column_stack([J, S])
+    U, sv, _ = np.linalg.svd(N / np.maximum(np.linalg.norm(N, axis=0), 1e-300), full_matrices=False)
     Q = U[:, sv > sv[0] * 1e-8] if sv.size and sv[0] > 0 else U[:, :0]
     return CaptureWindow(data, np.asarray(x, float), np.where(np.isfinite(r), r, 0.0), J, Q)
+
+
+CAM_KEY_STEP = 1e-4   # [rad] finite-difference step of the cam keying (units vary by ±5 mrad)
+CAM_KEYING = True
+
+
+def sensor_columns(x, data: WindowData, breaker: Breaker, operation: str, m0=None) -> np.ndarray:
+    """The measurement's own nuisance, whitened (issue 36 item 3), as columns beside the state
+    Jacobian: the transducer's zero (a constant [rad]), its gain (the reading itself: with the zero
+    they span any affine map of the reading, in either operation's coordinate) and, for a closing,
+    the cam's keying φ in θ2 = h(θ1 − φ) (∂model/∂φ by a finite difference). All three are
+    (nearly) linear, so they cost one column each in every linearised score."""
+    w = data.weight
+    m0 = model_curve(x, data, breaker, operation) if m0 is None else m0
+    cols = [w, m0 * w]
+    if operation == "close" and breaker.cam is not None and CAM_KEYING:
+        import dataclasses
+
+        cam = breaker.cam
+        keyed = dataclasses.replace(breaker, cam=dataclasses.replace(cam, theta1=np.asarray(cam.theta1) + CAM_KEY_STEP))
+        mk = model_curve(x, data, keyed, operation)
+        cols.append((mk - m0) * w / CAM_KEY_STEP)
+    S = np.column_stack(cols)
+    return np.where(np.isfinite(S), S, 0.0)
 
 
 def _bounds(x0, operation):
