@@ -184,7 +184,8 @@ def _alarm_times(session, alarms) -> dict[int, datetime]:
     ids = {a.operation_id for a in alarms if a.operation_id is not None}
     if not ids:
         return {}
-    times = dict(session.execute(select(OperationRow.id, OperationRow.occurred_at).where(OperationRow.id.in_(ids))))
+    times = {i: t for i, t in session.execute(select(OperationRow.id, OperationRow.occurred_at)
+                                              .where(OperationRow.id.in_(ids)))}
     return {a.id: times[a.operation_id] for a in alarms if a.operation_id in times}
 
 

@@ -97,15 +97,19 @@ class ReportPDF(FPDF):
                         r.cell(str(c))
         self.set_font("DejaVu", "", 8.5)
 
-    def figure(self, png: bytes | None, caption: str, *, width: float = TEXT_W):
+    def figure(self, png: bytes | None, caption: str, *, width: float = TEXT_W, heading: str | None = None):
+        """The figure with its caption below, on a new page when it does not fit (its
+        ``heading`` goes with it)."""
         if png is None:
             return
         from PIL import Image
 
         with Image.open(io.BytesIO(png)) as im:
             h = width * im.height / im.width
-        if self.get_y() + h + 8 > self.h - self.b_margin:
+        if self.get_y() + h + 8 + (12 if heading else 0) > self.h - self.b_margin:
             self.add_page()
+        if heading:
+            self.heading(heading)
         self.image(io.BytesIO(png), x=self.l_margin, w=width)
         self.set_font("DejaVu", "I", 7.5)
         self.multi_cell(0, 3.8, caption, new_x="LMARGIN", new_y="NEXT", align="L")
@@ -144,7 +148,7 @@ def _alarm_section(pdf: ReportPDF, c: ReportContent):
         pdf.para(f"Active now ({len(active)}):", style="B")
         pdf.grid(("Parameter", "Level", "State", "Raised", "Message"),
                  [(a.parameter, a.level.upper(), a.state + (" (shelved)" if a.shelved_until else ""), _t(a.raised_at),
-                   a.message) for a in active], (20, 18, 25, 37, 80))
+                   a.message) for a in active], (18, 16, 24, 42, 80))
     else:
         pdf.para("No active alarm.")
     if not c.alarms:
@@ -242,14 +246,14 @@ def render(c: ReportContent) -> bytes:
         op = c.latest[kind]
         if op is not None and op.curve is None and op.curve_note:
             pdf.para(f"Latest {'opening' if kind == 'open' else 'closing'}: no curve, {op.curve_note}.", size=7.5)
-    pdf.heading("Fitted parameters over time")
     if c.trends:
-        pdf.figure(figures.trends_png(c.trends),
+        pdf.figure(figures.trends_png(c.trends), heading="Fitted parameters over time", caption=
                    "Each fitted parameter with its 95 % interval (band), the drift detector's baseline (dashed) and "
                    "the breaker file's maintenance limits (red); vertical lines: alarms raised. Long histories are "
                    "drawn as the minimum and maximum of each of "
                    f"{figures_buckets()} buckets, so no excursion is lost.")
     else:
+        pdf.heading("Fitted parameters over time")
         pdf.para(f"No fitted parameter in {c.window.words()}.")
     _alarm_section(pdf, c)
     _prognosis_section(pdf, c)

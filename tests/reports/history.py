@@ -67,8 +67,9 @@ def bulk_history(Session, settings, breaker, *, capture_path: str, n: int = 10_0
                 lo, hi = r["ci95"][name]
                 values.append(dict(fit_id=fit_id, operation_id=op_id, breaker_id=breaker_id, kind=kind, name=name,
                                    value=v, ci_low=lo, ci_high=hi, identifiable=True, occurred_at=at))
+        conn = s.connection()  # Core inserts: executemany without the ORM's per-row bookkeeping
         for table, rows in ((OperationRow, ops), (FitRow, fits), (ParameterValueRow, values)):
             for k in range(0, len(rows), 5000):
-                s.execute(insert(table), rows[k:k + 5000])
+                conn.execute(insert(table.__table__), rows[k:k + 5000])
         events = update_drift(s, breaker_id=breaker_id, settings=settings)
     return {"results": results, "events": events, "first_id": first}
