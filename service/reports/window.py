@@ -10,7 +10,10 @@ def utc(t: datetime | None) -> datetime | None:
     """``t`` as an aware UTC time; a naive time is taken as UTC."""
     if t is None:
         return None
-    return t.replace(tzinfo=timezone.utc) if t.tzinfo is None else t.astimezone(timezone.utc)
+    try:
+        return t.replace(tzinfo=timezone.utc) if t.tzinfo is None else t.astimezone(timezone.utc)
+    except OverflowError:  # 0001-01-01 at +05:00 is before year 1 in UTC
+        raise ValueError(f"{t.isoformat()} is outside the years 1 to 9999 in UTC") from None
 
 
 def iso_z(t: datetime | None) -> str:
