@@ -250,7 +250,7 @@ def gather(session, *, breaker: BreakerRow, settings, window: Window = Window())
         acts.sort(key=lambda a: (a.at, a.id))
     identity = [("Name", breaker.name), ("Tag", breaker.tag), ("Breaker id", str(breaker.id)),
                 ("Breaker file", f"SHA-256 {breaker.content_sha256[:16]}…, cam table {breaker.cam_file_name or '—'}"),
-                ("Registered", breaker.created_at.strftime("%Y-%m-%d %H:%M UTC")),
+                ("Registered in hvcb", breaker.created_at.strftime("%Y-%m-%d %H:%M UTC")),
                 ("Baseline since", breaker.baseline_reset_at.strftime("%Y-%m-%d %H:%M UTC")
                  if breaker.baseline_reset_at else "its first operations")]
     if model is not None:

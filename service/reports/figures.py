@@ -51,7 +51,7 @@ def curves_png(latest: dict) -> bytes | None:
     if not shown:
         return None
     plt = pyplot("the condition report")
-    fig, axes = plt.subplots(1, len(shown), figsize=(WIDTH_IN, 2.5), squeeze=False, layout="constrained")
+    fig, axes = plt.subplots(1, len(shown), figsize=(WIDTH_IN, 2.2), squeeze=False, layout="constrained")
     for ax, (kind, op) in zip(axes[0], shown):
         c = op.curve
         t_ms = np.asarray(c["t_s"]) * 1e3
@@ -77,7 +77,7 @@ def trends_png(trends: list) -> bytes | None:
 
     cols = 2
     rows = -(-len(trends) // cols)
-    fig, axes = plt.subplots(rows, cols, figsize=(WIDTH_IN, 1.9 * rows), squeeze=False, layout="constrained")
+    fig, axes = plt.subplots(rows, cols, figsize=(WIDTH_IN, 1.55 * rows + 0.3), squeeze=False, layout="constrained")
     for ax in axes.flat[len(trends):]:
         ax.set_visible(False)
     for ax, tr in zip(axes.flat, trends):
@@ -93,9 +93,9 @@ def trends_png(trends: list) -> bytes | None:
         for side, value in tr.limits:
             ax.axhline(value, color=COLOURS["limit"], linewidth=1.0, label=f"limit ({'min' if side == 'falling' else 'max'})")
         for at, level in tr.alarms:
-            ax.axvline(_naive_utc([at])[0], color=COLOURS[level], linewidth=0.8, alpha=0.8)
+            ax.axvline(_naive_utc([at])[0], color=COLOURS[level], linewidth=1.0, linestyle=":")
         ax.set_title(f"{tr.name} [{tr.unit}]  ({tr.count} fits)", fontsize=8)
-        locator = mdates.AutoDateLocator(maxticks=5)
+        locator = mdates.AutoDateLocator(minticks=3, maxticks=7)
         ax.xaxis.set_major_locator(locator)
         ax.xaxis.set_major_formatter(mdates.ConciseDateFormatter(locator))
         _style(ax)
@@ -106,10 +106,22 @@ def trends_png(trends: list) -> bytes | None:
     if any(tr.alarms for tr in trends):
         from matplotlib.lines import Line2D
 
-        handles["alarm raised"] = Line2D([], [], color=COLOURS["alarm"], linewidth=0.8)
+        handles["alarm raised"] = Line2D([], [], color=COLOURS["alarm"], linewidth=1.0, linestyle=":")
     fig.legend(handles.values(), handles.keys(), loc="outside lower center", ncol=min(6, len(handles)), fontsize=7,
                frameon=False)
     return _png(fig)
+
+
+def _fan_span(f: dict, limit: float | None) -> tuple[float, float]:
+    """The value axis of a fan: the median path, the observed values and the limit with half their
+    span as margin. A band from a short basis can be wider than any physical value (a negative
+    stiffness); it is cut at the axis, not allowed to flatten what matters."""
+    obs = (f.get("observed") or {}).get("value") or []
+    vals = np.asarray([*f["median"], *obs, *([limit] if limit is not None else [])], float)
+    vals = vals[np.isfinite(vals)]
+    lo, hi = float(vals.min()), float(vals.max())
+    pad = 0.5 * (hi - lo) or 0.05 * abs(hi) or 1.0
+    return lo - pad, hi + pad
 
 
 def fan_png(prognoses: list) -> bytes | None:
@@ -131,6 +143,7 @@ def fan_png(prognoses: list) -> bytes | None:
             ax.plot(on[keep], ov[keep], ".", color="#333333", markersize=1.5, label="observed (compensated)")
         if p.limit is not None:
             ax.axhline(p.limit, color=COLOURS["limit"], linewidth=1.0, label="limit")
+        ax.set_ylim(*_fan_span(f, p.limit))
         if f.get("now") is not None:
             ax.axvline(f["now"], color=COLOURS["baseline"], linestyle=":", linewidth=0.8)
         ax.set_title(f"{p.parameter}: {p.limit_text}", fontsize=8)

@@ -148,7 +148,7 @@ def _alarm_section(pdf: ReportPDF, c: ReportContent):
         pdf.para(f"Active now ({len(active)}):", style="B")
         pdf.grid(("Parameter", "Level", "State", "Raised", "Message"),
                  [(a.parameter, a.level.upper(), a.state + (" (shelved)" if a.shelved_until else ""), _t(a.raised_at),
-                   a.message) for a in active], (18, 16, 24, 42, 80))
+                   a.message) for a in active], (21, 16, 23, 40, 80))
     else:
         pdf.para("No active alarm.")
     if not c.alarms:
@@ -185,7 +185,7 @@ def _prognosis_section(pdf: ReportPDF, c: ReportContent):
     rows = []
     for p in c.prognoses:
         q, d = p.operations_to_limit, p.date_to_limit
-        ops = "none within the horizon" if q is None else \
+        ops = "past the limit now" if p.status == "crossed" else "none within the horizon" if q is None else \
             f"{q.median:.0f} ({_g(q.p05, 3) if q.p05 is not None else '—'} to {_g(q.p95, 3) if q.p95 is not None else '> horizon'})"
         date = "—" if d is None else f"{d.median:%Y-%m-%d}"
         rows.append((p.parameter, p.limit_text, _g(p.limit, 5), _g(p.current, 5), ops, date,
@@ -249,7 +249,7 @@ def render(c: ReportContent) -> bytes:
     if c.trends:
         pdf.figure(figures.trends_png(c.trends), heading="Fitted parameters over time", caption=
                    "Each fitted parameter with its 95 % interval (band), the drift detector's baseline (dashed) and "
-                   "the breaker file's maintenance limits (red); vertical lines: alarms raised. Long histories are "
+                   "the breaker file's maintenance limits (red); dotted vertical lines: alarms raised (at the operation that raised them). Long histories are "
                    "drawn as the minimum and maximum of each of "
                    f"{figures_buckets()} buckets, so no excursion is lost.")
     else:
