@@ -125,6 +125,11 @@ def test_the_operations_csv_streams_in_chunks(service10k):
     assert "content-length" not in r.headers  # sent as it is read, never built whole first
     assert 'filename="reference-252kV-operations.csv"' in r.headers["content-disposition"]
     assert r.text == "".join(chunks)
+    # the answer leaves as one body message per chunk read, not as one body built first
+    with service10k.client.stream("GET", "/api/v1/breakers/reference-252kV/operations.csv",
+                                  headers=service10k.h()) as streamed:
+        sizes = [len(b) for b in streamed.iter_raw()]
+    assert len(sizes) == len(chunks) and max(sizes) < 2 * len(r.content) / (len(chunks) - 1)
 
 
 def test_the_operations_csv_rereads_into_the_numbers_the_api_gives(service10k):
