@@ -64,7 +64,7 @@ BUFFER_LAMINAR_SHARE = 0.25
 FRICTION_TEMP_COEFF = -0.003
 #: share of TCf that is friction (the rest is pneumatic/contact resistance, Sec. 2.2)
 TCF_FRICTION_SHARE = 0.6
-GREASE_B_K = 3000.0     # viscous-friction grease viscosity, Arrhenius [K]
+GREASE_B_K = 2500.0     # viscous-friction grease viscosity, Arrhenius [K]
 
 # --------------------------------------------------------------------------------------
 # effect scales (s = 1): each justified in docs/prototype-e.md
@@ -82,7 +82,9 @@ SCALE = dict(
     rod_stiffness=8.0e6, rod_zeta=0.03,
     # stribeck_friction: breakaway/sliding = 1.4 (greased steel/bronze pins, mu_s 0.14
     # vs mu_k 0.10); Stribeck speed 1 rad/s (0.03 m/s at a 30 mm bearing radius).
-    stribeck_ratio=1.4, stribeck_speed=1.0, stribeck_eps=0.05,
+    # In the closing it also acts on the camshaft bearings: closing-spring load ~33 kN,
+    # mu_k 0.1 at a 30 mm journal radius -> ~100 N m sliding friction (inside AC).
+    stribeck_ratio=1.4, stribeck_speed=1.0, stribeck_eps=0.05, cam_bearing_friction=100.0,
     # viscous_friction: 1.5 N m s/rad at 20 C (bearings and the puffer-rod seals), ~90 N m
     # at the opening's peak speed (15 % of TOf).
     viscous_coeff=1.5,

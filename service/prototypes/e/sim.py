@@ -47,7 +47,7 @@ GAS_A = SC["puffer_area"]; GAS_L0 = SC["puffer_length"]; GAS_RHO = SC["sf6_densi
 GAS_G = SC["sf6_gamma"]; GAS_CDA = SC["nozzle_cda"]; GAS_REG = SC["gas_dp_reg"]
 ROD_K = SC["rod_stiffness"]; ROD_Z = SC["rod_zeta"]
 STR_R = SC["stribeck_ratio"]; STR_W = SC["stribeck_speed"]; STR_E = SC["stribeck_eps"]
-VISC = SC["viscous_coeff"]; SPR_K = SC["spring_rate_slope"]
+VISC = SC["viscous_coeff"]; CAM_BEARING = SC["cam_bearing_friction"]; SPR_K = SC["spring_rate_slope"]
 CAM_MU = SC["cam_mu"]; CAM_GATE = SC["cam_gate"]
 W_MN = SC["main_normal"]; W_MT = SC["main_touch"]; W_ML = SC["main_lift"]
 W_AN = SC["arc_normal"]; W_AT = SC["arc_touch"]; W_AL = SC["arc_lift"]
@@ -251,6 +251,8 @@ def rhs_close(y, P, S, dy):
     Fext = 0.0
     if S[9] > 0.0:
         Fext = S[9] * (_wipe_one(xc, vc, W_MT, W_ML, W_MN) + _wipe_one(xc, vc, W_AT, W_AL, W_AN))
+    # breakaway of the camshaft bearings (their sliding part is inside the paper's AC)
+    TC -= _stribeck(w1, CAM_BEARING, S[4])
     mu = 0.0
     if S[8] > 0.0:
         mu = S[8] * CAM_MU * min(h1 / CAM_GATE, 1.0)
@@ -311,10 +313,30 @@ def run_open(P, S, t0, fs, nsamp, nsub):
     first = i0 * dt - t0
     if first > 1e-15:
         _rk4(rhs_open, y, P, S, first, k1, k2, k3, k4, yt)
+    ys = np.zeros(7)
+    a0 = P[ALPHA0]
     for i in range(i0, nsamp):
         if i > i0:
             for _ in range(nsub):
-                _rk4(rhs_open, y, P, S, dt / nsub, k1, k2, k3, k4, yt)
+                h = dt / nsub
+                ys[:] = y
+                _rk4(rhs_open, y, P, S, h, k1, k2, k3, k4, yt)
+                if (ys[0] - a0) * (y[0] - a0) < 0.0 and ys[1] != 0.0:
+                    # buffer engagement/release inside the step: land on alpha0 exactly
+                    # (Newton on the step length), then finish the step
+                    hc = min(max((a0 - ys[0]) / ys[1], 0.0), h)
+                    for _it in range(4):
+                        y[:] = ys
+                        _rk4(rhs_open, y, P, S, hc, k1, k2, k3, k4, yt)
+                        if y[1] == 0.0:
+                            break
+                        hc = min(max(hc - (y[0] - a0) / y[1], 0.0), h)
+                    y[:] = ys
+                    if hc > 0.0:
+                        _rk4(rhs_open, y, P, S, hc, k1, k2, k3, k4, yt)
+                    y[0] = a0 + 1e-15 * (1.0 if ys[1] > 0 else -1.0)
+                    if h - hc > 0.0:
+                        _rk4(rhs_open, y, P, S, h - hc, k1, k2, k3, k4, yt)
         tau[i] = y[0]
         xc[i] = y[2] if S[3] != 0.0 else link(y[0], S[0], P[RAEC])[0]
         pg[i] = y[4]
