@@ -131,7 +131,14 @@ def torsional_vibration(op, tau, u: M.Unit, J2, fs, t0, rng, x_contact=None):
     for name, i in events(op, tau, u, fs, t0, x_contact):
         if name == "travel_max":
             continue
-        dT = torque_step(tau, i, J2, fs)
+        if name == "latch" and op == "close":
+            # the output shaft rests on the cam dwell: the closing latch's release reaches
+            # it through the frame; 30 % of the closing spring's torque at release
+            th = u.theta1_start
+            xc = u.xC0 - u.rC * (1.0 - math.cos(th))
+            dT = -0.3 * u.kC * xc * u.rC * u.d * math.sin(th) / (u.d + u.rC * math.cos(th))
+        else:
+            dT = torque_step(tau, i, J2, fs)
         for k, (f, z, part) in enumerate(zip(u.modes_hz, u.modes_zeta, PARTICIPATION)):
             amp = part * dT / K_TORSION * float(np.exp(rng.normal(0.0, 0.3)))
             ph = float(rng.uniform(-0.5, 0.5))
@@ -161,9 +168,9 @@ def accelerometer(op, tau, u: M.Unit, J2, fs, t0, rng, x_contact=None):
     for name, i in events(op, tau, u, fs, t0, x_contact):
         if name == "latch":
             i = max(i - int(round(0.4e-3 * fs)), 0)
-            amp = 80.0
+            amp = 150.0
         else:
-            amp = min(abs(torque_step(tau, i, J2, fs)) * 0.15, 600.0)
+            amp = min(abs(torque_step(tau, i, J2, fs)) * 0.3, 800.0)
         amp *= float(np.exp(rng.normal(0.0, 0.3)))
         for f in fr:
             g += _struck(n, i, amp / 3.0, f, 0.05, fs, float(rng.uniform(0, 2 * math.pi)))
