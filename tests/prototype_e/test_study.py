@@ -121,3 +121,14 @@ def test_out_dir_that_is_a_file_is_refused(tmp_path):
     f.write_text("x")
     with pytest.raises(ValueError, match="not a directory"):
         write_groups(f, seed=1)
+
+
+def test_a_failed_closing_is_recognised():
+    from service.prototypes.e import study
+    u = M.design_unit()
+    u.TCf *= 1.5  # far beyond the closing-energy margin (stalls at about +35 %)
+    rng = np.random.default_rng(0)
+    info = study.capture("close", u, {}, M.Conditions(20.0, 1e-3), rng)[4]
+    assert info["completed"] is False
+    info = study.capture("close", M.design_unit(), {}, M.Conditions(20.0, 1e-3), rng)[4]
+    assert info["completed"] is True

@@ -64,7 +64,7 @@ BUFFER_LAMINAR_SHARE = 0.25
 FRICTION_TEMP_COEFF = -0.003
 #: share of TCf that is friction (the rest is pneumatic/contact resistance, Sec. 2.2)
 TCF_FRICTION_SHARE = 0.6
-GREASE_B_K = 2500.0     # viscous-friction grease viscosity, Arrhenius [K]
+GREASE_B_K = 2000.0     # viscous-friction grease viscosity, Arrhenius [K]
 
 # --------------------------------------------------------------------------------------
 # effect scales (s = 1): each justified in docs/prototype-e.md
@@ -85,9 +85,9 @@ SCALE = dict(
     # In the closing it also acts on the camshaft bearings: closing-spring load ~33 kN,
     # mu_k 0.1 at a 30 mm journal radius -> ~100 N m sliding friction (inside AC).
     stribeck_ratio=1.4, stribeck_speed=1.0, stribeck_eps=0.05, cam_bearing_friction=100.0,
-    # viscous_friction: 1.5 N m s/rad at 20 C (bearings and the puffer-rod seals), ~90 N m
-    # at the opening's peak speed (15 % of TOf).
-    viscous_coeff=1.5,
+    # viscous_friction: 1.0 N m s/rad at 20 C (bearings and the puffer-rod seals), ~60 N m
+    # at the opening's peak speed (10 % of TOf).
+    viscous_coeff=1.0,
     # spring_nonlinearity: rate changes +-10 % from the middle to the ends of the
     # working deflection (end-coil contact / pitch tolerance of long helical springs).
     spring_rate_slope=0.10,
@@ -95,8 +95,8 @@ SCALE = dict(
     # potentiometer, datasheets 0.05-0.2 %, worn track in the field more).
     sensor_inl=0.0015,
     # cam_friction: effective coefficient 0.04 at the cam-roller contact (free rolling
-    # roller ~0.005; stiff/dry roller bearing with partial sliding up to 0.1), s = 1 at 0.025.
-    cam_mu=0.025, cam_gate=0.05,
+    # roller ~0.005; stiff/dry roller bearing with partial sliding up to 0.1), s = 1 at 0.015 (the reference breaker has a thin closing-energy margin: 0.04 at s = 1.5 stalls a cold unit).
+    cam_mu=0.015, cam_gate=0.05,
     # contact_wipe: main fingers 3000 N total normal load, arcing tulip 600 N, mu 0.2
     # (Ag-Ag), entry chamfer 30 deg; main contact touches at 22 mm from closed with
     # 2 mm finger lift, arcing contact at 45 mm with 1.5 mm lift.
