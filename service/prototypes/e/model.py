@@ -38,8 +38,8 @@ REFERENCE = dict(
 #: moving mass on the contact side of the linkage [kg]: moving contact, puffer cylinder,
 #: nozzle and the insulating pull rod of a 252 kV puffer interrupter (typ. 4-7 kg).
 M_CONTACT = 5.0
-#: inertia on the output-shaft side [kg m^2]: J2 minus the contact mass referred through
-#: the design linkage ratio raec (J2 = J_SHAFT + M_CONTACT * raec^2 holds exactly).
+# The output-shaft side's inertia J_shaft is J2 minus the contact mass referred through
+# the design linkage ratio raec (J2 = J_shaft + M_CONTACT * raec^2 holds exactly).
 
 #: crank-slider four-bar between the output shaft and the contact rod (linkage_kinematics)
 LINK_CRANK = 0.16       # crank radius on the output shaft [m]
