@@ -14,6 +14,8 @@ from pathlib import Path
 from fpdf import FPDF
 from fpdf.fonts import FontFace
 
+from service.storage.crud_alarms import annunciated, shelved_now
+
 from . import figures
 from .content import ReportContent
 from .verdicts import FAIL, PASS, overall
@@ -147,7 +149,8 @@ def _alarm_section(pdf: ReportPDF, c: ReportContent):
     if active:
         pdf.para(f"Active now ({len(active)}):", style="B")
         pdf.grid(("Parameter", "Level", "State", "Raised", "Message"),
-                 [(a.parameter, a.level.upper(), a.state + (" (shelved)" if a.shelved_until else ""), _t(a.raised_at),
+                 [(a.parameter, a.level.upper(), a.state + (f" (shelved until {_t(a.shelved_until)})"
+                                                            if shelved_now(a, c.generated_at) else ""), _t(a.raised_at),
                    a.message) for a in active], (21, 16, 23, 40, 80))
     else:
         pdf.para("No active alarm.")
@@ -224,15 +227,11 @@ def render(c: ReportContent) -> bytes:
     n = c.counts
     verdicts = [v for op in c.latest.values() if op is not None
                 for v in op.characteristic_verdicts + op.parameter_verdicts]
-    status = ("ALARM" if any(a.level == "alarm" for a in c.active_alarms) else
-              "WARNING" if c.active_alarms else "no active alarm")
     pdf.ln(1)
     pdf.key_values([("Summary", f"{n['open']} openings and {n['close']} closings from {_t(n['first'])} to "
                                 f"{_t(n['last'])}; {n['done']} fitted, {n['failed']} failed, {n['pending']} pending"),
                     ("Latest operations", f"{overall(verdicts)}: the latest opening and closing against the breaker file's limits"),
-                    ("Alarms", f"{status}" + (f": {len(c.active_alarms)} active ("
-                                              + ", ".join(f"{a.parameter} {a.level}" for a in c.active_alarms) + ")"
-                                              if c.active_alarms else "")),
+                    ("Alarms", _alarm_summary(c)),
                     ("Prognosis", _soonest(c.prognoses))])
     pdf.heading("Breaker")
     pdf.key_values(c.identity)
@@ -261,6 +260,20 @@ def render(c: ReportContent) -> bytes:
     pdf.heading("Method and version")
     pdf.key_values(c.method)
     return bytes(pdf.output())
+
+
+def _alarm_summary(c: ReportContent) -> str:
+    """The breaker's alarm status as the page counts it: shelved alarms are listed, not counted."""
+    active = c.active_alarms
+    if not active:
+        return "no active alarm"
+    told = annunciated(active, c.generated_at)
+    names = ", ".join(f"{a.parameter} {a.level}" + (" (shelved)" if a not in told else "") for a in active)
+    if not told:
+        return f"none annunciated: {len(active)} active, all shelved ({names})"
+    level = "ALARM" if any(a.level == "alarm" for a in told) else "WARNING"
+    shelved = len(active) - len(told)
+    return f"{level}: {len(active)} active ({names})" + (f", {shelved} of them shelved" if shelved else "")
 
 
 def figures_buckets() -> int:
