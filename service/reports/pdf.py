@@ -19,7 +19,6 @@ from service.storage.crud_alarms import annunciated, shelved_now
 from . import figures
 from .content import ReportContent
 from .verdicts import FAIL, PASS, overall
-from .window import iso_z
 
 TEXT_W = 180.0  # mm: A4 (210 mm) less 15 mm margins
 RESULT_COLOURS = {PASS: (214, 240, 214), FAIL: (250, 210, 205)}
