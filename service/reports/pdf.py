@@ -187,9 +187,14 @@ def _prognosis_section(pdf: ReportPDF, c: ReportContent):
     rows = []
     for p in c.prognoses:
         q, d = p.operations_to_limit, p.date_to_limit
-        ops = "past the limit now" if p.status == "crossed" else "none within the horizon" if q is None else \
-            f"{q.median:.0f} ({f'{q.p05:.0f}' if q.p05 is not None else '—'} to "
-            f"{f'{q.p95:.0f}' if q.p95 is not None else 'beyond the horizon'})"
+        if p.status == "crossed":
+            ops = "past the limit now"
+        elif q is None:
+            ops = "none within the horizon"
+        else:
+            low = "—" if q.p05 is None else f"{q.p05:.0f}"
+            high = "beyond the horizon" if q.p95 is None else f"{q.p95:.0f}"
+            ops = f"{q.median:.0f} ({low} to {high})"
         date = "—" if d is None else f"{d.median:%Y-%m-%d}"
         rows.append((p.parameter, p.limit_text, _g(p.limit, 5), _g(p.current, 5), ops, date,
                      p.status + (f": {p.reason}" if p.reason else "")))
