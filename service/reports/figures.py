@@ -12,7 +12,7 @@ import io
 import numpy as np
 
 from service.decimation import minmax_indices
-from service.plots import pyplot
+from service.plots import require_matplotlib
 
 DPI = 150  # sharp on paper at the widths used (≤ 180 mm: ≥ 1000 px), a few 100 kB per figure
 WIDTH_IN = 7.0  # the figures' width [in] (the page's text width, 180 mm)
@@ -22,11 +22,19 @@ COLOURS = {"measured": "#1f4e79", "fitted": "#d9822b", "band": "#9ecae1", "value
            "baseline": "#555555", "limit": "#c0392b", "warning": "#e6a700", "alarm": "#c0392b"}
 
 
+def _figure(rows: int, cols: int, height_in: float):
+    """A figure and its axes grid, made without pyplot: pyplot keeps global state and is not
+    thread-safe, and the API renders reports in worker threads, several at once."""
+    require_matplotlib("the condition report's figures")
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(WIDTH_IN, height_in), layout="constrained")
+    return fig, fig.subplots(rows, cols, squeeze=False)
+
+
 def _png(fig) -> bytes:
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=DPI)
-    fig.clf()
-    pyplot("the condition report").close(fig)
+    fig.savefig(buf, format="png", dpi=DPI)  # a bare Figure draws with Agg
     return buf.getvalue()
 
 
@@ -50,8 +58,7 @@ def curves_png(latest: dict) -> bytes | None:
     shown = [(k, v) for k, v in latest.items() if v is not None and v.curve is not None]
     if not shown:
         return None
-    plt = pyplot("the condition report")
-    fig, axes = plt.subplots(1, len(shown), figsize=(WIDTH_IN, 2.2), squeeze=False, layout="constrained")
+    fig, axes = _figure(1, len(shown), 2.2)
     for ax, (kind, op) in zip(axes[0], shown):
         c = op.curve
         t_ms = np.asarray(c["t_s"]) * 1e3
@@ -72,12 +79,10 @@ def trends_png(trends: list) -> bytes | None:
     breaker file's limits; alarms marked where they were raised."""
     if not trends:
         return None
-    plt = pyplot("the condition report")
-    import matplotlib.dates as mdates
-
     cols = 2
     rows = -(-len(trends) // cols)
-    fig, axes = plt.subplots(rows, cols, figsize=(WIDTH_IN, 1.55 * rows + 0.3), squeeze=False, layout="constrained")
+    fig, axes = _figure(rows, cols, 1.55 * rows + 0.3)
+    import matplotlib.dates as mdates
     for ax in axes.flat[len(trends):]:
         ax.set_visible(False)
     for ax, tr in zip(axes.flat, trends):
@@ -129,8 +134,7 @@ def fan_png(prognoses: list) -> bytes | None:
     shown = [p for p in prognoses if p.fan and p.fan.get("operations")]
     if not shown:
         return None
-    plt = pyplot("the condition report")
-    fig, axes = plt.subplots(1, len(shown), figsize=(WIDTH_IN, 2.3), squeeze=False, layout="constrained")
+    fig, axes = _figure(1, len(shown), 2.3)
     for ax, p in zip(axes[0], shown):
         f = p.fan
         n = np.asarray(f["operations"], float)

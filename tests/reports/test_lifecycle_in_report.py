@@ -54,3 +54,34 @@ def test_the_lifecycle_and_the_shelve_are_in_the_report(tmp_path):
     assert re.search(r"by j\.smith \(buffer checked on site\)", after)
     assert re.search(rf"#{alarm_id} DO ALARM acknowledged raised .* shelve\w* .* by a\.jones \(buffer replacement booked\)",
                      after)
+
+
+def test_figures_drawn_in_several_threads_at_once_are_the_figures_drawn_alone(tmp_path):
+    """The API renders reports in worker threads: the figures use no shared pyplot state."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from service.breaker_file import load_breaker
+    from service.reports import figures
+    from service.reports.content import gather
+    from service.settings import load_settings
+    from service.storage import crud
+    from service.storage.db import make_engine, session_factory, upgrade
+
+    from .history import bulk_history
+
+    url = f"sqlite:///{tmp_path / 'hvcb.sqlite3'}"
+    upgrade(url)
+    settings = load_settings(data_dir=tmp_path, database_url=url, broker_url="", executor="inline",
+                             bootstrap_admin_key=None)
+    Session = session_factory(make_engine(url))
+    with Session() as s, s.begin():
+        crud.register_breaker_file(s, path=BREAKER_FILE, tag="Q1")
+    bulk_history(Session, settings.drift_settings, load_breaker(BREAKER_FILE), capture_path="/nonexistent.cfg",
+                 n=120, leak_from=0.5, leak_per_op=0.97)
+    with Session() as s:
+        c = gather(s, breaker=crud.get_breaker(s, breaker_id=1), settings=settings.drift_settings)
+    alone = (figures.trends_png(c.trends), figures.fan_png(c.prognoses))
+    with ThreadPoolExecutor(4) as pool:
+        together = list(pool.map(lambda _: (figures.trends_png(c.trends), figures.fan_png(c.prognoses)), range(8)))
+    assert alone[0] and alone[1]
+    assert all(t == alone for t in together)
