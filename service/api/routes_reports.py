@@ -18,7 +18,8 @@ from .routes_alarms import _breaker_ref
 
 router = APIRouter(prefix="/api/v1", tags=["reports"])
 BreakerRef = Annotated[str, PathParam(min_length=1, max_length=120, description="breaker name, tag or id")]
-From = Annotated[datetime | None, Query(alias="from", description="operations at or after (ISO 8601; UTC when no zone)")]
+From = Annotated[datetime | None, Query(alias="from",
+                                        description="operations at or after (ISO 8601; UTC when no zone)")]
 To = Annotated[datetime | None, Query(alias="to", description="operations at or before (ISO 8601; UTC when no zone)")]
 ERRORS = {401: {"model": s.Message}, 403: {"model": s.Message}, 404: {"model": s.Message},
           422: {"model": s.Message, "description": "`from` is after `to`"}}

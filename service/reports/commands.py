@@ -28,7 +28,8 @@ def parse_time(text: str | None, option: str) -> datetime | None:
     try:
         value = datetime.fromisoformat(text)
     except ValueError:
-        raise UserError(f"{option} {text!r} is not a time (use ISO 8601, e.g. 2026-01-31 or 2026-01-31T12:00)") from None
+        raise UserError(f"{option} {text!r} is not a time (use ISO 8601, e.g. 2026-01-31 or "
+                        "2026-01-31T12:00)") from None
     return value if value.tzinfo else value.replace(tzinfo=timezone.utc)
 
 

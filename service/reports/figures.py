@@ -96,7 +96,8 @@ def trends_png(trends: list) -> bytes | None:
         if tr.baseline:
             ax.axhline(tr.baseline, color=COLOURS["baseline"], linestyle="--", linewidth=0.8, label="baseline")
         for side, value in tr.limits:
-            ax.axhline(value, color=COLOURS["limit"], linewidth=1.0, label=f"limit ({'min' if side == 'falling' else 'max'})")
+            bound = "min" if side == "falling" else "max"
+            ax.axhline(value, color=COLOURS["limit"], linewidth=1.0, label=f"limit ({bound})")
         for at, level in tr.alarms:
             ax.axvline(_naive_utc([at])[0], color=COLOURS[level], linewidth=1.0, linestyle=":")
         ax.set_title(f"{tr.name} [{tr.unit}]  ({tr.count} fits)", fontsize=8)

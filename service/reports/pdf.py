@@ -235,7 +235,8 @@ def render(c: ReportContent) -> bytes:
     pdf.ln(1)
     pdf.key_values([("Summary", f"{n['open']} openings and {n['close']} closings from {_t(n['first'])} to "
                                 f"{_t(n['last'])}; {n['done']} fitted, {n['failed']} failed, {n['pending']} pending"),
-                    ("Latest operations", f"{overall(verdicts)}: the latest opening and closing against the breaker file's limits"),
+                    ("Latest operations", f"{overall(verdicts)}: the latest opening and closing against the "
+                                          "breaker file's limits"),
                     ("Alarms", _alarm_summary(c)),
                     ("Prognosis", _soonest(c.prognoses))])
     pdf.heading("Breaker")
@@ -253,7 +254,8 @@ def render(c: ReportContent) -> bytes:
     if c.trends:
         pdf.figure(figures.trends_png(c.trends), heading="Fitted parameters over time", caption=
                    "Each fitted parameter with its 95 % interval (band), the drift detector's baseline (dashed) and "
-                   "the breaker file's maintenance limits (red); dotted vertical lines: alarms raised (at the operation that raised them). Long histories are "
+                   "the breaker file's maintenance limits (red); dotted vertical lines: alarms raised (at the "
+                   "operation that raised them). Long histories are "
                    "drawn as the minimum and maximum of each of "
                    f"{figures_buckets()} buckets, so no excursion is lost.")
     else:

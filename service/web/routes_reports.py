@@ -19,7 +19,8 @@ from .render import security_headers
 
 router = APIRouter(include_in_schema=False)
 CSV = "text/csv; charset=utf-8"
-DateText = Annotated[str, Query(max_length=40)]
+From = Annotated[str, Query(alias="from", max_length=40)]
+To = Annotated[str, Query(alias="to", max_length=40)]
 
 
 def _when(text: str, field: str, *, end: bool) -> datetime | None:
@@ -59,8 +60,7 @@ def _download(body, name: str, media: str):
 
 
 @router.get("/breakers/{breaker_id}/report.pdf")
-async def report_pdf(request: Request, breaker_id: Id, user: Reader, start: Annotated[str, Query(alias="from", max_length=40)] = "",
-                     end: Annotated[str, Query(alias="to", max_length=40)] = ""):
+async def report_pdf(request: Request, breaker_id: Id, user: Reader, start: From = "", end: To = ""):
     from service.reports.content import gather
     from service.reports.pdf import render
 
@@ -77,8 +77,7 @@ async def report_pdf(request: Request, breaker_id: Id, user: Reader, start: Anno
 
 
 @router.get("/breakers/{breaker_id}/operations.csv")
-def operations_csv(request: Request, breaker_id: Id, user: Reader, start: Annotated[str, Query(alias="from", max_length=40)] = "",
-                   end: Annotated[str, Query(alias="to", max_length=40)] = ""):
+def operations_csv(request: Request, breaker_id: Id, user: Reader, start: From = "", end: To = ""):
     window = _window(start, end)
     bid, name = _breaker(request, breaker_id)
     return _download(operation_chunks(request.app.state.Session, breaker_id=bid, window=window),
@@ -86,8 +85,7 @@ def operations_csv(request: Request, breaker_id: Id, user: Reader, start: Annota
 
 
 @router.get("/breakers/{breaker_id}/alarms.csv")
-def alarms_csv(request: Request, breaker_id: Id, user: Reader, start: Annotated[str, Query(alias="from", max_length=40)] = "",
-               end: Annotated[str, Query(alias="to", max_length=40)] = ""):
+def alarms_csv(request: Request, breaker_id: Id, user: Reader, start: From = "", end: To = ""):
     window = _window(start, end)
     bid, name = _breaker(request, breaker_id)
     return _download(alarm_chunks(request.app.state.Session, breaker_id=bid, window=window),

@@ -11,6 +11,7 @@ import csv
 import io
 import os
 import re
+import shutil
 import subprocess
 import sys
 
@@ -19,8 +20,10 @@ import pytest
 
 from .conftest import N_HISTORY, REPO
 
-pytestmark = [pytest.mark.history10k, pytest.mark.skipif(not all(os.path.exists(f"/usr/bin/{t}") for t in ("pdftotext", "pdftoppm", "pdfimages")),
-                                reason="report lane off: poppler-utils (pdftotext, pdftoppm, pdfimages) not installed")]
+POPPLER = ("pdftotext", "pdftoppm", "pdfimages")
+pytestmark = [pytest.mark.history10k,
+              pytest.mark.skipif(not all(shutil.which(t) for t in POPPLER),
+                                 reason="report lane off: poppler-utils (pdftotext, pdftoppm, pdfimages) not installed")]
 
 
 def _words(text: str) -> str:
