@@ -29,6 +29,7 @@ COMMANDS = {
     "restore": ("service.storage.commands", "restore a backup made by hvcb backup"),
     "agent": ("service.agent.commands", "edge agent: acquisition only, forwarding captures to a central hvcb"),
     "refit": ("service.refit.commands", "re-fit stored operations (resumable; old results kept)"),
+    "report": ("service.reports.commands", "a breaker's condition report (PDF)"),
 }
 
 
