@@ -69,7 +69,7 @@ def diagnose(captures, breaker: Breaker, operation: str, *, effects=None, seed: 
         raise DiagnosisError(f"none of the given effects acts on an {operation} operation")
     windows = prepare(list(captures), breaker, operation, fitter=fitter, seed=seed)
     try:
-        return _diagnose(windows, catalogue, strengths, next_measurements, t0)
+        return _diagnose(windows, catalogue, strengths, next_measurements, t0, time.perf_counter() - t0)
     except (ArithmeticError, ValueError, np.linalg.LinAlgError):
         # a numerical failure is the records' (non-finite model values, a fit that did not
         # converge): said in words naming them, never the library's message
@@ -78,11 +78,17 @@ def diagnose(captures, breaker: Breaker, operation: str, *, effects=None, seed: 
                              f"(a model value or a residual is not a number): refused, no diagnosis") from None
 
 
-def _diagnose(windows, catalogue, strengths, next_measurements, t0):
+def _diagnose(windows, catalogue, strengths, next_measurements, t0, t_prepare):
+    t1 = time.perf_counter()
     scores = score(windows, catalogue)
+    t2 = time.perf_counter()
     fits = fit_reported(windows, scores, rivals=2 if next_measurements else 1)
+    t3 = time.perf_counter()
     ev = evidence(fits, scores)
     dec = decide(fits, ev, catalogue, strengths)
     nm = next_measurement(fits, dec.rivals) if (next_measurements and dec.status == "ambiguous") else []
     ho = holdout(windows, fits.hypotheses[dec.hypothesis]) if dec.status == "named" else None
-    return build(fits, ev, dec, nm, ho, time.perf_counter() - t0, scores)
+    result = build(fits, ev, dec, nm, ho, time.perf_counter() - t0, scores)
+    result["stages_s"] = {"prepare": t_prepare, "evidence": t2 - t1, "report_refit": t3 - t2,
+                          "rest": time.perf_counter() - t3}
+    return result

@@ -212,8 +212,19 @@ def build(fits: Fits, ev: Evidence, dec: Decision, next_meas: list, holdout, run
     return result
 
 
+ONE_CAPTURE = " One capture cannot decide between close rivals: its units of evidence are ~2 ms stretches of it."
+
+
 def message(r: dict) -> str:
-    """The result in one sentence: the same answer and probability as the table."""
+    """The result in one sentence: the same answer and probability as the table (with one
+    capture, the caution that it cannot decide between close rivals)."""
+    text = _message(r)
+    if r["captures"] == 1 and r["status"] != "ambiguous":
+        text += ONE_CAPTURE
+    return text
+
+
+def _message(r: dict) -> str:
     g = r["gap"]
     ratio = g["before_rms_rad"] / g["noise_rad"]
     n = r["captures"]
@@ -233,7 +244,7 @@ def message(r: dict) -> str:
     names = [x["effect"] for x in r["rivals"][:2]]
     say = (f"Cannot decide between {in_words(names[0])} and {in_words(names[1])}" if len(names) == 2
            else f"Cannot decide ({in_words(names[0])} at most)" if names else "Cannot decide")
-    one = " One capture cannot decide between close rivals: record more operations." if n == 1 else ""
+    one = ONE_CAPTURE + " Record more operations." if n == 1 else ""
     nm = r.get("next_measurement") or []
     nxt = f" The recording that would decide: {nm[0]['measurement']}." if nm else ""
     return (say + " (" + ", ".join(f"{in_words(x['effect'])} {x['probability']:.2f}" for x in r["rivals"])
