@@ -207,6 +207,7 @@ def build(fits: Fits, ev: Evidence, dec: Decision, next_meas: list, holdout, run
         "how_far": None,
         "runtime_s": float(runtime_s),
         "evidence": predictive_report(scores, dec),
+        "left_out": list(getattr(w, "left_out", []) or []),
     }
     result["message"] = message(result)
     return result
@@ -221,6 +222,8 @@ def message(r: dict) -> str:
     text = _message(r)
     if r["captures"] == 1 and r["status"] != "ambiguous":
         text += ONE_CAPTURE
+    for d in r.get("left_out") or []:
+        text += f" {d['source']}: {d['reason']}."
     return text
 
 

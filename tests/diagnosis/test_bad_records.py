@@ -77,3 +77,33 @@ def test_a_fit_that_fails_is_refused_in_words(analyser, exc):
     msg = str(ei.value)
     assert caps[0].source in msg and "refused" in msg
     assert "infs or NaNs" not in msg and "LinAlgError" not in msg and "SVD" not in msg
+
+
+def test_a_capture_whose_fit_does_not_converge_is_left_out_in_words(analyser):
+    """A capture the reduced model cannot start from (here its fit is forced to a state far off,
+    as a wrong basin does): left out of the evidence and named with the reason; the others are
+    diagnosed. All of them so: refused in words."""
+    from service.estimation import fit_capture
+
+    b, caps = analyser
+    bad_source = caps[1].source
+
+    def fitter(cap, breaker, operation, seed=1):
+        fr = fit_capture(cap, breaker, operation, seed=seed)
+        if cap.source == bad_source:
+            fr.onset_delay_s += 20e-3           # 20 ms late: far beyond what τ's tangent absorbs
+        return fr
+
+    import service.diagnosis.windows as W
+
+    orig = W.baseline
+    try:
+        W.baseline = lambda x0, data, breaker, operation: x0      # keep the (wrong) start as the fit
+        r = diagnose(caps, b, "open", fitter=fitter, next_measurements=False)
+        assert r["captures"] == 1 and [d["source"] for d in r["left_out"]] == [bad_source]
+        assert bad_source in r["message"] and "did not converge" in r["message"]
+        with pytest.raises(DiagnosisError) as ei:
+            diagnose([caps[1]], b, "open", fitter=fitter, next_measurements=False)
+        assert bad_source in str(ei.value) and "refused" in str(ei.value)
+    finally:
+        W.baseline = orig
