@@ -13,6 +13,7 @@ over captures and blocks).
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -98,15 +99,15 @@ def prepare(captures, breaker: Breaker, operation: str, *, fitter=None, seed: in
         name = cap.source or "capture"
         try:
             fr = fitter(cap, breaker, operation, seed=seed)
-        except ValueError as exc:
-            msg = str(exc)
-            if not np.all(valid) or "nan" in msg.lower() or "inf" in msg.lower():
-                raise DiagnosisError(f"{name}: the reduced model's fit failed on this record "
-                                     f"({int((~valid).sum())} samples not numbers): refused") from None
-            raise DiagnosisError(msg if msg.startswith(name) else f"{name}: {msg}") from None
         except (ArithmeticError, np.linalg.LinAlgError, RuntimeError):
             raise DiagnosisError(f"{name}: the reduced model's fit did not converge on this record: "
                                  f"refused") from None
+        except ValueError as exc:
+            msg = str(exc)
+            if re.search(r"\b(nans?|infs?|infinity)\b", msg, re.IGNORECASE):     # a library's, not ours
+                raise DiagnosisError(f"{name}: the reduced model's fit failed on this record "
+                                     f"({int((~valid).sum())} samples not numbers): refused") from None
+            raise DiagnosisError(msg if msg.startswith(name) else f"{name}: {msg}") from None
         if not (np.isfinite(getattr(fr, "noise_rad", np.nan)) and getattr(fr, "noise_rad", 0.0) > 0):
             raise DiagnosisError(f"{name}: the record's noise floor could not be estimated (no valid "
                                  f"samples at rest before the motion): refused")
