@@ -51,14 +51,14 @@ def upgrade() -> None:
         sa.Column('event_id', sa.Integer(), nullable=False),
         sa.Column('route', sa.String(60), nullable=False),
         sa.Column('message_key', sa.String(64), nullable=True),
-        sa.Column('sent', sa.Boolean(), nullable=False),
+        sa.Column('status', sa.String(8), nullable=False),
         sa.Column('attempts', sa.Integer(), nullable=False),
         sa.Column('sent_at', sa.DateTime(timezone=True), nullable=True),
         sa.ForeignKeyConstraint(['event_id'], ['notification_events.id'], ondelete='CASCADE'),
         sa.PrimaryKeyConstraint('id'),
         sa.UniqueConstraint('event_id', 'route', name='uq_notification_deliveries_event_route'),
     )
-    op.create_index('ix_notification_deliveries_pending', 'notification_deliveries', ['route', 'sent', 'event_id'])
+    op.create_index('ix_notification_deliveries_pending', 'notification_deliveries', ['route', 'status', 'event_id'])
 
 
 def downgrade() -> None:

@@ -41,6 +41,11 @@ class Notifier:
         if not self.enabled or self._threads:
             return
         self._stop.clear()
+        # Each route's progress exists before the service takes a request: a new route starts at
+        # the newest event, and no event written after the start can slip past its cursor.
+        with self.Session() as session, session.begin():
+            for r in self.settings.routes:
+                outbox.route_row(session, r.name)
         self._threads = [threading.Thread(target=self._watch_loop, name="hvcb-notify-watch", daemon=True)]
         self._threads += [threading.Thread(target=self._route_loop, args=(r,), name=f"hvcb-notify-{r.name}",
                                            daemon=True) for r in self.settings.routes]
@@ -75,7 +80,7 @@ class Notifier:
         with self.Session() as session, session.begin():
             if not outbox.claim(session, route.name, owner=self.owner, now=utcnow(), lease_s=lease_s):
                 return False
-            outbox.take_in(session, route)
+            outbox.take_in(session, route, now=utcnow())
             msg = outbox.next_message(session, route, now=utcnow(), group_interval_s=s.group_interval_s,
                                       max_events=s.max_events_per_message)
         if msg is None:

@@ -12,13 +12,18 @@ from __future__ import annotations
 
 from datetime import datetime, timedelta
 
-from sqlalchemy import func, or_, select, update
+from sqlalchemy import exists, func, or_, select, update
 
 from service.notifications.message import message_key
 from service.notifications.retry import backoff_s
 from service.notifications.rows import NotificationDeliveryRow, NotificationEventRow, NotificationRouteRow
 
 TAKE_IN_BATCH = 1000  # events examined per step (a backlog is taken in over several steps)
+# An event older than this is committed or rolled back: every transaction that writes events is a
+# fit's or an operator's, seconds long. Below the cursor nothing new can appear any more.
+SETTLE = timedelta(minutes=10)
+
+E, D = NotificationEventRow, NotificationDeliveryRow
 
 
 def route_row(session, name: str) -> NotificationRouteRow:
@@ -50,21 +55,36 @@ def release(session, name: str, *, owner: str) -> None:
                     .values(lease_owner=None, lease_until=None))
 
 
-def take_in(session, route) -> int:
-    """Add a delivery for each new routed event this route matches; returns how many."""
+def _unconsidered(name: str):
+    return ~exists().where(D.event_id == E.id, D.route == name)
+
+
+def take_in(session, route, *, now: datetime) -> int:
+    """Give each new event a delivery row for this route: pending when the route takes it,
+    skipped when its filters or a silence (shelved, out of service) say no. Returns how many
+    are pending. Events are found by the missing row, not by id alone: on PostgreSQL a
+    transaction may commit a lower id after a higher one."""
     row = route_row(session, route.name)
-    events = list(session.scalars(select(NotificationEventRow).where(NotificationEventRow.id > row.cursor)
-                                  .order_by(NotificationEventRow.id).limit(TAKE_IN_BATCH)))
+    events = list(session.scalars(select(E).where(E.id > row.cursor, _unconsidered(route.name))
+                                  .order_by(E.id).limit(TAKE_IN_BATCH)))
     added = 0
     for ev in events:
-        if ev.silenced is None and route.matches(kind=ev.kind, severity=ev.severity, parameter=ev.parameter,
-                                                 breaker=ev.payload.get("breaker", {})):
-            session.add(NotificationDeliveryRow(event_id=ev.id, route=route.name, sent=False, attempts=0))
-            added += 1
-    if events:
-        row.cursor = events[-1].id
+        take = ev.silenced is None and route.matches(kind=ev.kind, severity=ev.severity, parameter=ev.parameter,
+                                                     breaker=ev.payload.get("breaker", {}))
+        session.add(D(event_id=ev.id, route=route.name, status="pending" if take else "skipped", attempts=0))
+        added += take
     session.flush()
+    settled = session.scalar(select(func.max(E.id)).where(E.id > row.cursor, E.created_at < now - SETTLE))
+    if settled is not None and session.scalar(select(func.count()).select_from(E).where(
+            E.id > row.cursor, E.id <= settled, _unconsidered(route.name))) == 0:
+        row.cursor = settled
     return added
+
+
+def unconsidered(session, name: str) -> int:
+    """Events the route has not taken in yet (it takes them in at its next round)."""
+    row = route_row(session, name)
+    return session.scalar(select(func.count()).select_from(E).where(E.id > row.cursor, _unconsidered(name)))
 
 
 def _payload(ev: NotificationEventRow) -> dict:
@@ -80,7 +100,7 @@ def next_message(session, route, *, now: datetime, group_interval_s: float,
         return None
     base = (select(NotificationDeliveryRow, NotificationEventRow)
             .join(NotificationEventRow, NotificationEventRow.id == NotificationDeliveryRow.event_id)
-            .where(NotificationDeliveryRow.route == route.name, NotificationDeliveryRow.sent.is_(False)))
+            .where(NotificationDeliveryRow.route == route.name, NotificationDeliveryRow.status == "pending"))
     formed = session.execute(base.where(NotificationDeliveryRow.message_key.is_not(None))
                              .order_by(NotificationDeliveryRow.event_id)).all()
     if formed:  # a message that failed before: the same events under the same key
@@ -103,8 +123,8 @@ def mark_sent(session, name: str, key: str, *, now: datetime) -> int:
     """The receiver accepted message ``key``: its deliveries are done; the route is healthy."""
     res = session.execute(update(NotificationDeliveryRow)
                           .where(NotificationDeliveryRow.route == name, NotificationDeliveryRow.message_key == key,
-                                 NotificationDeliveryRow.sent.is_(False))
-                          .values(sent=True, sent_at=now, attempts=NotificationDeliveryRow.attempts + 1))
+                                 NotificationDeliveryRow.status == "pending")
+                          .values(status="sent", sent_at=now, attempts=NotificationDeliveryRow.attempts + 1))
     row = route_row(session, name)
     row.failures, row.next_attempt_at, row.last_error, row.last_sent_at = 0, None, None, now
     return res.rowcount
@@ -125,6 +145,6 @@ def mark_failed(session, name: str, key: str, *, now: datetime, error: str, retr
 
 def backlog(session) -> dict[str, int]:
     """Route name -> events taken in and not yet accepted by its receiver."""
-    q = (select(NotificationDeliveryRow.route, func.count()).where(NotificationDeliveryRow.sent.is_(False))
+    q = (select(NotificationDeliveryRow.route, func.count()).where(NotificationDeliveryRow.status == "pending")
          .group_by(NotificationDeliveryRow.route))
     return dict(session.execute(q).all())

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from datetime import datetime
 
-from sqlalchemy import Boolean, ForeignKey, Index, Integer, String, Text, UniqueConstraint
+from sqlalchemy import ForeignKey, Index, Integer, String, Text, UniqueConstraint
 from sqlalchemy.orm import Mapped, mapped_column
 
 from service.storage.models import Base, utcnow
@@ -37,8 +37,8 @@ class NotificationEventRow(Base):
 
 
 class NotificationRouteRow(Base):
-    """A configured route's progress: ``cursor`` is the last event id it has taken in (a new
-    route starts at the newest event: it is not sent the past), and its retry state."""
+    """A configured route's progress: every event up to ``cursor`` has been taken in (a new route
+    starts at the newest event: it is not sent the past), and its retry state."""
 
     __tablename__ = "notification_routes"
     name: Mapped[str] = mapped_column(String(60), primary_key=True)
@@ -53,17 +53,20 @@ class NotificationRouteRow(Base):
 
 
 class NotificationDeliveryRow(Base):
-    """One event for one route. ``message_key`` is set when the event is put in a message (so a
-    retried message is the same message); ``sent`` once the receiver accepted it."""
+    """One event for one route: ``status`` is "pending" until the receiver accepted it ("sent"),
+    or "skipped" when the route does not take it (filters, silenced). Every event gets a row per
+    route, so an event committed late (PostgreSQL may commit a lower id after a higher one) is
+    still found. ``message_key`` is set when the event is put in a message (so a retried message
+    is the same message)."""
 
     __tablename__ = "notification_deliveries"
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
     event_id: Mapped[int] = mapped_column(ForeignKey("notification_events.id", ondelete="CASCADE"))
     route: Mapped[str] = mapped_column(String(60))
     message_key: Mapped[str | None] = mapped_column(String(64))
-    sent: Mapped[bool] = mapped_column(Boolean, default=False)
+    status: Mapped[str] = mapped_column(String(8), default="pending")
     attempts: Mapped[int] = mapped_column(Integer, default=0)
     sent_at: Mapped[datetime | None]
 
     __table_args__ = (UniqueConstraint("event_id", "route", name="uq_notification_deliveries_event_route"),
-                      Index("ix_notification_deliveries_pending", "route", "sent", "event_id"))
+                      Index("ix_notification_deliveries_pending", "route", "status", "event_id"))
