@@ -225,7 +225,7 @@ def test_email_over_starttls_with_login_and_routing_filters(tmp_path, db_url):
         assert smtp.logins == [SmtpReceiver.user]
         assert "WARNING raised" in mail["Subject"] and "reference-252kV" in mail["Subject"]
         assert mail["To"] == "asset.engineer@utility.example"
-        assert "buffer damping factor DO falling" in mail.get_payload()
+        assert "buffer damping factor DO falling" in mail.get_payload(decode=True).decode()
         assert other.requests == [], "a filtered route was sent the event"
     finally:
         smtp.stop()
