@@ -230,3 +230,23 @@ def test_email_over_starttls_with_login_and_routing_filters(tmp_path, db_url):
     finally:
         smtp.stop()
         other.stop()
+
+
+def test_a_chat_route_through_apprise_posts_the_text(tmp_path, db_url):
+    """Apprise (the chat services' library) delivers the same text; its generic json:// service
+    stands in for Teams, Slack or Matrix here, posting to the loopback receiver."""
+    pytest.importorskip("apprise", reason="apprise lane off: pip install 'hvcb[notify]'")
+    chat = WebhookReceiver().start()
+    try:
+        url = chat.url.replace("http://", "json://")
+        settings = make_settings(tmp_path, db_url, notifications=notifications(
+            {"name": "chat", "kind": "apprise", "urls": [url]}))
+        with running_app(settings) as (app, client, keys):
+            store(app.state.Session, 1, "raised")
+            posted = poll(lambda: chat.messages(), 20, "the chat message")
+            poll(lambda: considered_all(app.state.Session, "chat"), 20, "the chat route done")
+    finally:
+        chat.stop()
+    assert len(posted) == 1
+    assert posted[0]["title"].startswith("[hvcb] WARNING raised: reference-252kV (Q1) DO")
+    assert "buffer damping factor DO falling" in posted[0]["message"]
