@@ -38,8 +38,11 @@ def route_row(session, name: str) -> NotificationRouteRow:
 
 
 def claim(session, name: str, *, owner: str, now: datetime, lease_s: float) -> bool:
-    """Take (or renew) the route's lease, so one notifier at a time sends it (several API processes)."""
-    route_row(session, name)
+    """Take (or renew) the route's lease, so one notifier at a time sends it (several API processes).
+    A lease more than half left is kept as it is: no write at every idle round (SQLite has one writer)."""
+    row = route_row(session, name)
+    if row.lease_owner == owner and row.lease_until is not None and row.lease_until > now + timedelta(seconds=lease_s / 2):
+        return True
     res = session.execute(update(NotificationRouteRow)
                           .where(NotificationRouteRow.name == name,
                                  or_(NotificationRouteRow.lease_owner.is_(None),

@@ -8,11 +8,11 @@ offer STARTTLS is a failure, not a fallback to plain text. Message-ID is the ide
 from __future__ import annotations
 
 import smtplib
-import socket
 import ssl
 from email.message import EmailMessage
 from email.utils import formatdate
 
+from service.errors import in_words
 from service.notifications.delivery_error import DeliveryError
 from service.notifications.message import subject, text
 
@@ -53,6 +53,5 @@ def send(route, message: dict) -> None:
         raise DeliveryError(f"SMTP server {route.smtp_host}:{route.smtp_port}: {exc}") from None
     except ssl.SSLError as exc:
         raise DeliveryError(f"SMTP server {route.smtp_host}: TLS failed ({exc.reason or exc})") from None
-    except (OSError, socket.timeout) as exc:
-        raise DeliveryError(f"SMTP server {route.smtp_host}:{route.smtp_port} not reached "
-                            f"({exc.strerror or exc})") from None
+    except OSError as exc:  # refused, unreachable, timed out
+        raise DeliveryError(f"SMTP server {route.smtp_host}:{route.smtp_port} not reached: {in_words(exc)}") from None

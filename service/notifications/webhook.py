@@ -10,6 +10,7 @@ import time
 
 import httpx
 
+from service.errors import in_words
 from service.notifications.delivery_error import DeliveryError
 from service.notifications.message import body_bytes
 from service.notifications.signature import IDEMPOTENCY_HEADER, SIGNATURE_HEADER, TIMESTAMP_HEADER, sign
@@ -24,7 +25,6 @@ def send(route, message: dict, *, now: float | None = None) -> None:
     try:
         r = httpx.post(route.url, content=data, headers=headers, timeout=route.timeout_s)
     except httpx.HTTPError as exc:
-        raise DeliveryError(f"webhook {route.url} not reached: {type(exc).__name__.lower()} "
-                            f"({exc or 'no detail'})") from None
+        raise DeliveryError(f"webhook {route.url} not reached: {in_words(exc)}") from None
     if not 200 <= r.status_code < 300:
         raise DeliveryError(f"webhook {route.url} answered {r.status_code}: {r.text[:200]}")

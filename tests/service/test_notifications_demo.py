@@ -4,7 +4,6 @@ and a real webhook receiver on the loopback, signed and verifiable; SQLite and P
 
 from __future__ import annotations
 
-import pytest
 
 from conftest import make_settings
 from notify_receivers import SmtpReceiver, WebhookReceiver, poll
