@@ -250,3 +250,39 @@ def test_a_chat_route_through_apprise_posts_the_text(tmp_path, db_url):
     assert len(posted) == 1
     assert posted[0]["title"].startswith("[hvcb] WARNING raised: reference-252kV (Q1) DO")
     assert "buffer damping factor DO falling" in posted[0]["message"]
+
+
+def test_events_are_written_with_their_transition_and_rolled_back_with_it(tmp_path, db_url):
+    """The outbox row is part of the alarm transition's transaction: a rolled-back transition
+    leaves no event; a committed one leaves exactly its events. A route configured later is not
+    sent the past."""
+    from service.jobs.fit import apply_alarm_event
+    from service.notifications import outbox
+    from service.notifications.routes import RouteSettings
+    from service.storage.db import make_engine, session_factory
+
+    engine = make_engine(db_url)
+    Session = session_factory(engine)
+    try:
+        with Session() as s, s.begin():
+            crud.upsert_breaker(s, name="bay1", tag="Q1", breaker_file="x", cam_file_name="", cam_table="")
+        ev = AlarmEvent("raised", "DO", "warning", 1, None, utcnow(), {})
+        with Session() as s:
+            s.begin()
+            apply_alarm_event(s, breaker_id=1, event=ev)
+            assert s.scalar(select(func.count()).select_from(NotificationEventRow)) == 1  # inside the transaction
+            s.rollback()
+        with Session() as s:
+            assert s.scalar(select(func.count()).select_from(NotificationEventRow)) == 0
+        store(Session, 1, "raised")
+        store(Session, 1, "escalated", level="alarm")
+        with Session() as s, s.begin():
+            assert [e.kind for e in s.scalars(select(NotificationEventRow).order_by(NotificationEventRow.id))] == \
+                ["raised", "escalated"]
+            late = RouteSettings(name="late", kind="webhook", url="http://127.0.0.1:9/x", secret="s" * 20)
+            assert outbox.take_in(s, late, now=utcnow()) == 0 and outbox.unconsidered(s, "late") == 0
+        store(Session, 1, "cleared", level="alarm")
+        with Session() as s, s.begin():
+            assert outbox.take_in(s, late, now=utcnow()) == 1
+    finally:
+        engine.dispose()
