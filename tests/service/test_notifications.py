@@ -286,3 +286,40 @@ def test_events_are_written_with_their_transition_and_rolled_back_with_it(tmp_pa
             assert outbox.take_in(s, late, now=utcnow()) == 1
     finally:
         engine.dispose()
+
+
+def test_a_prognosis_entering_its_last_weeks_makes_one_event_and_leaving_another(tmp_path, db_url):
+    from datetime import timedelta
+
+    from service.notifications import watch
+    from service.storage.db import make_engine, session_factory
+    from service.storage.models import PrognosisRow
+
+    engine = make_engine(db_url)
+    Session = session_factory(engine)
+    now = utcnow()
+
+    def result(weeks):
+        when = (now + timedelta(weeks=weeks)).isoformat()
+        return {"status": "ok", "limit_text": "DO min_change = -0.25",
+                "date_to_limit": {"p05": when, "median": when, "p95": when},
+                "operations_to_limit": {"p05": 10.0, "median": 20.0, "p95": 30.0}}
+
+    try:
+        with Session() as s, s.begin():
+            crud.upsert_breaker(s, name="bay1", tag="Q1", breaker_file="x", cam_file_name="", cam_table="")
+            s.add(PrognosisRow(breaker_id=1, parameter="DO", median_operations=20.0, result=result(30)))
+        kinds = []
+        for weeks in (30, 11, 10, 9, 13, 13, 5):
+            with Session() as s, s.begin():
+                s.get(PrognosisRow, (1, "DO")).result = result(weeks)
+            with Session() as s, s.begin():
+                watch.prognosis_windows(s, weeks=12, now=now)
+                kinds = [e.kind for e in s.scalars(select(NotificationEventRow).order_by(NotificationEventRow.id))]
+        assert kinds == ["prognosis_entered", "prognosis_left", "prognosis_entered"]
+        with Session() as s:
+            first = s.scalars(select(NotificationEventRow).order_by(NotificationEventRow.id)).first()
+        assert first.payload["prognosis"]["window_weeks"] == 12 and first.payload["parameter"] == "DO"
+        assert first.severity == "warning" and first.silenced is None
+    finally:
+        engine.dispose()
