@@ -3,16 +3,23 @@
 
 The service as it runs (app factory, local process pool, SQLite or PostgreSQL) takes one upload
 at a time; the latency is the wall time from the upload's POST to its fit row being done
-(upload, durable capture, queue, fit in the worker, result and drift update stored). Two
-conditions, each on a fresh database:
+(upload, durable capture, queue, fit in the worker, result and drift update stored), and, from
+the fit row's own times, queued to done (queue, fit, result and drift update: without the
+upload's fsync, whose time on a shared disk varies most). Three conditions, each on a fresh
+database:
 
 - ``off``: no notification routes;
 - ``failing``: 200 alarm events waiting in the outbox and two routes that cannot deliver them,
-  retried as fast as the settings allow (50 ms doubling to 200 ms): one webhook to a port that
-  refuses connections (many short bookkeeping transactions), one to a "black hole" that accepts
-  the connection and never answers (each attempt held for its 2 s timeout).
+  one webhook to a port that refuses connections, one to a "black hole" that accepts the
+  connection and never answers (each attempt held for its 2 s timeout), with the default pacing
+  (retries from 1 s, doubling);
+- ``failing-fast``: the same, retried as fast as the settings allow (50 ms doubling to 200 ms,
+  polling every 50 ms): the notifier's worst case.
 
-    python bench/notify_fit_latency.py [--quick] [--fits 25] [--database-url URL]
+The conditions take turns (``--rounds``), each round on fresh databases, so a change of the
+machine's load (it is shared) spreads over all of them.
+
+    python bench/notify_fit_latency.py [--quick] [--fits 40] [--rounds 4] [--database-url URL]
 
 Writes bench/results/notify_fit_latency.json (``--quick``: ..._quick.json).
 """
@@ -78,6 +85,10 @@ def preload_events(Session, n: int) -> None:
             apply_alarm_event(s, breaker_id=other, event=AlarmEvent(kind, "DO", level, i // 3 + 1, None, utcnow(), {}))
 
 
+PACING = {"off": {}, "failing": {},
+          "failing-fast": {"poll_s": 0.05, "retry_min_s": 0.05, "retry_max_s": 0.2, "group_interval_s": 0.0}}
+
+
 def run(condition: str, fits: int, warmup: int, database_url: str | None, workdir: Path) -> dict:
     from fastapi.testclient import TestClient
     from sqlalchemy import func, select
@@ -93,19 +104,18 @@ def run(condition: str, fits: int, warmup: int, database_url: str | None, workdi
          "timeout_s": 2.0},
         {"name": "black-hole", "kind": "webhook", "url": f"http://127.0.0.1:{hole.getsockname()[1]}/h",
          "secret": SECRET, "timeout_s": 2.0}]
-    data = workdir / condition
+    data = workdir / f"{condition}-{len(list(workdir.iterdir()))}"
     url = database_url or f"sqlite:///{data / 'hvcb.sqlite3'}"
     data.mkdir(parents=True)
     upgrade(url)
     settings = load_settings(data_dir=data, database_url=url, broker_url="", executor="local", workers=1,
                              bootstrap_admin_key=None, breakers=[BREAKER_FILE],
-                             notifications={"routes": routes, "poll_s": 0.05, "retry_min_s": 0.05,
-                                            "retry_max_s": 0.2, "group_interval_s": 0.0})
+                             notifications={"routes": routes, **PACING[condition]})
     breaker = load_breaker(BREAKER_FILE)
     rng = np.random.default_rng(11)
     keys: list[str] = []
     app = create_app(settings, on_key=keys.append)
-    latencies, runtimes = [], []
+    latencies, runtimes, in_service = [], [], []
     with TestClient(app) as client:
         Session = app.state.Session
         if routes:
@@ -132,20 +142,22 @@ def run(condition: str, fits: int, warmup: int, database_url: str | None, workdi
             if i >= warmup:
                 latencies.append(elapsed)
                 with Session() as s:
-                    runtimes.append(s.scalar(select(FitRow.runtime_s).order_by(FitRow.id.desc()).limit(1)))
+                    fit = s.scalars(select(FitRow).order_by(FitRow.id.desc()).limit(1)).one()
+                    runtimes.append(fit.runtime_s)
+                    in_service.append((fit.finished_at - fit.queued_at).total_seconds())
         with Session() as s:
             statuses = dict(s.execute(select(FitRow.status, func.count()).group_by(FitRow.status)).all())
             reasons = sorted({r for r in s.scalars(select(FitRow.failure_reason).where(FitRow.status == "failed"))})
             notifier = {"events": s.scalar(select(func.count()).select_from(NotificationEventRow)),
                         "pending": s.scalar(select(func.count()).select_from(NotificationDeliveryRow)
                                             .where(NotificationDeliveryRow.status == "pending")),
-                        "attempts": s.scalar(select(func.coalesce(func.sum(NotificationDeliveryRow.attempts), 0))),
+                        "attempts": sum(r.failures for r in s.scalars(select(NotificationRouteRow))),
                         "failures": {r.name: r.failures for r in s.scalars(select(NotificationRouteRow))}}
     hole.close()
     q = statistics.quantiles(latencies, n=10) if len(latencies) >= 2 else latencies * 9
     return {"condition": condition, "fits": len(latencies), "latency_median_s": statistics.median(latencies),
             "latency_p90_s": q[-1], "latency_mean_s": statistics.fmean(latencies),
-            "fit_runtime_median_s": statistics.median(runtimes), "fit_statuses": statuses, "failure_reasons": reasons,
+            "fit_runtime_median_s": statistics.median(runtimes), "queued_to_done_s": in_service, "fit_statuses": statuses, "failure_reasons": reasons,
             "latencies_s": latencies, "notifier": notifier}
 
 
@@ -154,31 +166,49 @@ def main() -> None:
 
     logging.getLogger("hvcb.notifications").setLevel(logging.ERROR)  # the failing routes' retries, by design
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--quick", action="store_true", help="5 fits per condition (development)")
-    ap.add_argument("--fits", type=int, default=25)
-    ap.add_argument("--database-url", default=None, help="an empty PostgreSQL database (default: SQLite)")
+    ap.add_argument("--quick", action="store_true", help="6 fits per condition in 2 rounds (development)")
+    ap.add_argument("--fits", type=int, default=40, help="fits per condition (over all rounds)")
+    ap.add_argument("--rounds", type=int, default=4)
+    ap.add_argument("--database-url", default=None, help="a PostgreSQL server (scratch databases; default: SQLite)")
     args = ap.parse_args()
-    fits = 5 if args.quick else args.fits
-    out = {"database": "postgresql" if args.database_url else "sqlite", "fits_per_condition": fits,
-           "machine_cores": os.cpu_count(), "conditions": []}
+    fits, rounds = (6, 2) if args.quick else (args.fits, args.rounds)
+    per_round = max(1, fits // rounds)
+    out = {"database": "postgresql" if args.database_url else "sqlite", "fits_per_condition": per_round * rounds,
+           "rounds": rounds, "machine_cores": os.cpu_count(), "conditions": {}}
+    runs: dict[str, list[dict]] = {c: [] for c in PACING}
     with tempfile.TemporaryDirectory(prefix="hvcb-notify-bench-") as tmp:
-        for condition in ("off", "failing"):
-            if args.database_url:
-                from service.storage.scratch import scratch_pg_database
+        for r in range(rounds):
+            for condition in PACING:
+                if args.database_url:
+                    from service.storage.scratch import scratch_pg_database
 
-                with scratch_pg_database(args.database_url, "hvcb_bench") as url:
-                    res = run(condition, fits, 2, url, Path(tmp))
-            else:
-                res = run(condition, fits, 2, None, Path(tmp))
-            out["conditions"].append(res)
-            print(f"{condition:8s} fit latency median {res['latency_median_s']:.3f} s, p90 {res['latency_p90_s']:.3f} s "
-                  f"(fit itself {res['fit_runtime_median_s']:.3f} s); notifier: {res['notifier']['pending']} pending, "
-                  f"{res['notifier']['attempts']} delivery attempts, failures {res['notifier']['failures']}", flush=True)
-    off, failing = out["conditions"]
-    out["median_change_s"] = failing["latency_median_s"] - off["latency_median_s"]
-    out["median_change_rel"] = out["median_change_s"] / off["latency_median_s"]
-    print(f"median latency change with the failing notifier: {out['median_change_s'] * 1000:+.0f} ms "
-          f"({out['median_change_rel'] * 100:+.1f} %)")
+                    with scratch_pg_database(args.database_url, "hvcb_bench") as url:
+                        res = run(condition, per_round, 2, url, Path(tmp))
+                else:
+                    res = run(condition, per_round, 2, None, Path(tmp))
+                runs[condition].append(res)
+                print(f"round {r + 1} {condition:12s} median {res['latency_median_s']:.3f} s "
+                      f"(notifier: {res['notifier']['attempts']} attempts, {res['notifier']['pending']} pending)",
+                      flush=True)
+    for condition, rs in runs.items():
+        lat = [x for r in rs for x in r["latencies_s"]]
+        q = statistics.quantiles(lat, n=10)
+        qd = [x for r in rs for x in r["queued_to_done_s"]]
+        out["conditions"][condition] = {
+            "queued_to_done_median_s": statistics.median(qd), "queued_to_done_p90_s": statistics.quantiles(qd, n=10)[-1],
+            "latency_median_s": statistics.median(lat), "latency_p90_s": q[-1], "latency_mean_s": statistics.fmean(lat),
+            "fit_runtime_median_s": statistics.median(r["fit_runtime_median_s"] for r in rs),
+            "fit_statuses": [r["fit_statuses"] for r in rs], "failure_reasons": sorted({x for r in rs for x in r["failure_reasons"]}),
+            "notifier": [r["notifier"] for r in rs], "latencies_s": lat, "queued_to_done_s": qd}
+    off = out["conditions"]["off"]["latency_median_s"]
+    for condition, c in out["conditions"].items():
+        c["median_change_s"] = c["latency_median_s"] - off
+        c["median_change_rel"] = c["median_change_s"] / off
+        c["queued_to_done_change_s"] = c["queued_to_done_median_s"] - out["conditions"]["off"]["queued_to_done_median_s"]
+        print(f"{condition:12s} fit latency median {c['latency_median_s']:.3f} s, p90 {c['latency_p90_s']:.3f} s, "
+              f"change of the median {c['median_change_s'] * 1000:+.0f} ms ({c['median_change_rel'] * 100:+.1f} %); "
+              f"queued to done median {c['queued_to_done_median_s'] * 1000:.0f} ms "
+              f"({c['queued_to_done_change_s'] * 1000:+.0f} ms)")
     name = "notify_fit_latency" + ("_quick" if args.quick else "") + ("_postgresql" if args.database_url else "")
     path = REPO / "bench" / "results" / f"{name}.json"
     path.write_text(json.dumps(out, indent=2) + "\n")

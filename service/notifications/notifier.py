@@ -58,6 +58,7 @@ class Notifier:
         for t in self._threads:
             t.join(timeout=max(r.timeout_s for r in self.settings.routes) + 5 if self.settings.routes else 5)
         self._threads = []
+        webhook.close_clients()
         if self.enabled:
             try:
                 with self.Session() as session, session.begin():
@@ -73,18 +74,25 @@ class Notifier:
             return (watch.shelve_expiries(session, now=now)
                     + watch.prognosis_windows(session, weeks=self.settings.prognosis_weeks, now=now))
 
-    def route_once(self, route) -> bool:
-        """Send the route's next due message; True when one was accepted (more may be due)."""
+    def route_once(self, route) -> float:
+        """One round of a route: take in new events and send its next due message. Returns how
+        long to wait before the next round [s]: 0 after an accepted message (more may be due),
+        the time left of the backoff after a failure (nothing can go before the failed message,
+        so the route does not touch the database until then), else ``poll_s``."""
         s = self.settings
         lease_s = max(60.0, 3 * route.timeout_s)
         with self.Session() as session, session.begin():
-            if not outbox.claim(session, route.name, owner=self.owner, now=utcnow(), lease_s=lease_s):
-                return False
-            outbox.take_in(session, route, now=utcnow())
-            msg = outbox.next_message(session, route, now=utcnow(), group_interval_s=s.group_interval_s,
+            now = utcnow()
+            if not outbox.claim(session, route.name, owner=self.owner, now=now, lease_s=lease_s):
+                return s.poll_s
+            retry_at = outbox.route_row(session, route.name).next_attempt_at
+            if retry_at is not None and retry_at > now:
+                return min((retry_at - now).total_seconds(), lease_s / 2)
+            outbox.take_in(session, route, now=now)
+            msg = outbox.next_message(session, route, now=now, group_interval_s=s.group_interval_s,
                                       max_events=s.max_events_per_message)
         if msg is None:
-            return False
+            return s.poll_s
         key, events = msg
         try:  # outside any transaction
             TRANSPORTS[route.kind](route, body(key, events, s.page_url))
@@ -94,11 +102,11 @@ class Notifier:
                                           retry_min_s=s.retry_min_s, retry_max_s=s.retry_max_s)
             log.warning("notification route %s: %s; %d event(s) kept, next attempt at %s",
                         route.name, exc, len(events), when.isoformat())
-            return False
+            return max((when - utcnow()).total_seconds(), 0.0)
         with self.Session() as session, session.begin():
             outbox.mark_sent(session, route.name, key, now=utcnow())
         self.sent += 1
-        return True
+        return 0.0
 
     # -- the threads -----------------------------------------------------------------------------
     def _watch_loop(self) -> None:
@@ -112,8 +120,9 @@ class Notifier:
     def _route_loop(self, route) -> None:
         while not self._stop.is_set():
             try:
-                if self.route_once(route):
-                    continue  # a backlog drains without waiting (the group interval still paces it)
+                wait = self.route_once(route)  # 0: a backlog drains without waiting
             except Exception:
                 log.warning("notification route %s: round failed; trying again", route.name, exc_info=True)
-            self._stop.wait(self.settings.poll_s)
+                wait = self.settings.poll_s
+            if wait > 0:
+                self._stop.wait(wait)

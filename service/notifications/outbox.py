@@ -123,22 +123,21 @@ def next_message(session, route, *, now: datetime, group_interval_s: float,
 
 
 def mark_sent(session, name: str, key: str, *, now: datetime) -> int:
-    """The receiver accepted message ``key``: its deliveries are done; the route is healthy."""
+    """The receiver accepted message ``key``: its deliveries are done (with the number of
+    attempts it took); the route is healthy again."""
+    row = route_row(session, name)
     res = session.execute(update(NotificationDeliveryRow)
                           .where(NotificationDeliveryRow.route == name, NotificationDeliveryRow.message_key == key,
                                  NotificationDeliveryRow.status == "pending")
-                          .values(status="sent", sent_at=now, attempts=NotificationDeliveryRow.attempts + 1))
-    row = route_row(session, name)
+                          .values(status="sent", sent_at=now, attempts=row.failures + 1))
     row.failures, row.next_attempt_at, row.last_error, row.last_sent_at = 0, None, None, now
     return res.rowcount
 
 
 def mark_failed(session, name: str, key: str, *, now: datetime, error: str, retry_min_s: float,
                 retry_max_s: float) -> datetime:
-    """Message ``key`` was not accepted: it waits (exponential backoff) and is sent again as it is."""
-    session.execute(update(NotificationDeliveryRow)
-                    .where(NotificationDeliveryRow.route == name, NotificationDeliveryRow.message_key == key)
-                    .values(attempts=NotificationDeliveryRow.attempts + 1))
+    """Message ``key`` was not accepted: it waits (exponential backoff) and is sent again as it is.
+    Only the route's row is written (one small write per attempt, however large the message)."""
     row = route_row(session, name)
     row.failures += 1
     row.last_error = error[:2000]
