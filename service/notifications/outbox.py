@@ -41,7 +41,8 @@ def claim(session, name: str, *, owner: str, now: datetime, lease_s: float) -> b
     """Take (or renew) the route's lease, so one notifier at a time sends it (several API processes).
     A lease more than half left is kept as it is: no write at every idle round (SQLite has one writer)."""
     row = route_row(session, name)
-    if row.lease_owner == owner and row.lease_until is not None and row.lease_until > now + timedelta(seconds=lease_s / 2):
+    half = now + timedelta(seconds=lease_s / 2)
+    if row.lease_owner == owner and row.lease_until is not None and row.lease_until > half:
         return True
     res = session.execute(update(NotificationRouteRow)
                           .where(NotificationRouteRow.name == name,

@@ -153,7 +153,8 @@ def test_prognosis_events_say_when_and_validate():
     e = ev.prognosis_payload("prognosis_entered", key="p1", breaker={"id": 1, "name": "b", "tag": None},
                              parameter="DO", weeks=12, result=result, now=NOW)
     jsonschema.validate(body("p1", [{**e, "sequence": 3}]), SCHEMA)
-    assert ev.headline(e) == "PROGNOSIS: b DO expected at its limit (DO min_change = -0.25) within 12 weeks (median 2027-01-20)"
+    assert ev.headline(e) == ("PROGNOSIS: b DO expected at its limit (DO min_change = -0.25) within 12 weeks "
+                              "(median 2027-01-20)")
     from service.notifications.watch import within
 
     assert within(result, weeks=12, now=NOW) and not within(result, weeks=6, now=NOW)

@@ -174,7 +174,8 @@ def test_a_shelved_alarm_sends_nothing_until_it_is_unshelved(tmp_path, db_url):
             poll(lambda: considered_all(Session), 20, "the route past the acknowledgement")
             assert len(receiver.requests) == n, "a shelved alarm's acknowledgement was sent"
             with Session() as s:
-                silenced = s.scalars(select(NotificationEventRow).where(NotificationEventRow.kind == "acknowledged")).all()
+                silenced = s.scalars(select(NotificationEventRow)
+                                     .where(NotificationEventRow.kind == "acknowledged")).all()
             assert len(silenced) == 1 and silenced[0].silenced.startswith("alarm shelved until")
             r = client.post(f"/api/v1/alarms/{alarm_id}/unshelve", headers=op, json={"reason": "leak fixed?"})
             assert r.status_code == 200, r.text
