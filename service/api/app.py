@@ -170,6 +170,9 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
     from .routes_prognosis import router as prognosis_router  # issue 31
 
     app.include_router(prognosis_router)
+    from .routes_setting import router as setting_router  # issue 39: the spring setting
+
+    app.include_router(setting_router)
 
     from .routes_keys import router as keys_router
 

@@ -221,6 +221,8 @@ def operation_page(request: Request, operation_id: Id, user: Reader):
         names = OPENING if op.kind == "open" else CLOSING
         from service.acquisition.comtrade_writer import stored_analyser_results, stored_masked_spans
 
+        from service.storage.spring_references import setting_of
+
         from .diagnosis_view import view as diagnosis_view
 
         analyser = stored_analyser_results(op.capture_path) if op.capture_path else None
@@ -228,6 +230,7 @@ def operation_page(request: Request, operation_id: Id, user: Reader):
                "CHARACTERISTICS": CHARACTERISTICS, "nav": "fleet", "pruned": pruned,
                "analyser": analyser_table(analyser),
                "masked": stored_masked_spans(op.capture_path) if op.capture_path else [],
+               "setting": setting_of(session, op, crud.breaker_model(b)),
                "diag_view": diagnosis_view(diag.result) if diag is not None and diag.status == "done" else None}
     return page(request, "operation.html", ctx)  # rendered with the connection back
 
