@@ -6,11 +6,18 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, HTTPException, Path as PathParam
+from fastapi import APIRouter, HTTPException
+from fastapi import Path as PathParam
 from pydantic import BaseModel, Field
 
 from service.storage import crud
-from service.storage.spring_references import NoPair, current_reference, record_reference, reference_dict, setting_of
+from service.storage.spring_references import (
+    NoPair,
+    current_reference,
+    record_reference,
+    reference_dict,
+    setting_of,
+)
 
 from . import schemas as s
 from .deps import OperatorDep, ReaderDep, SessionDep

@@ -104,3 +104,4 @@ def setting(reading: dict, breaker: Breaker, *, reference: dict | None = None,
     return {"steps": steps, "sd_steps": sd, "ci95": (steps - Z95 * sd, steps + Z95 * sd),
             "nearest": round(steps), "friction": reading["friction"], "sd_friction": reading.get("sd_friction"),
             "kO_sd_steps": kappa_sd, "basis": basis}
+

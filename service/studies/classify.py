@@ -30,8 +30,8 @@ import numpy as np
 from .classification_methods import (
     DEFAULT_SEED, FIELD_NUISANCE, METHODS, PAPER_ACCURACY, UNIT_TOLERANCE, classification_spec,
     folds_for, method_makers)
-from .classify_pairs import (PAIR_PROTOCOLS, PAIR_TARGET, build_pairs, ceilings, identifiability_table,
-                             run_pair_protocols, setting_inference)
+from .classify_pairs import (PAIR_PROTOCOLS, PAIR_TARGET, build_pairs, ceilings, identifiability_kO_section,
+                             identifiability_table, run_pair_protocols, setting_inference)
 from .common import DEFAULT_WORKERS, load_reference
 from .condition_cnn import torch_available
 from .condition_classifiers import cross_validate, train_test
@@ -269,7 +269,8 @@ def _write_tables(out_dir, result):
                  100 * ce["single_opening_true_BO"]["cross_unit"], 100 * ce["pair_true_BO_CC"]["cv5"],
                  100 * ce["pair_true_BO_CC"]["cross_unit"]] + [None] * (len(PAIR_PROTOCOLS) - 1)
                 + ["no fit error, no sensor"])
-    sections = [identifiability_section(result["identifiability"])]
+    sections = [identifiability_section(result["identifiability"]),
+                identifiability_kO_section(result["identifiability"])]
     for p in ALL_PROTOCOLS:
         for m in METHODS:
             if m not in result["confusion"][p]:

@@ -20,9 +20,25 @@ from pathlib import Path
 
 import numpy as np
 
-from .classification_methods import DEFAULT_SEED, METHODS, PAPER_ACCURACY, classification_spec, folds_for, method_makers
-from .classify_pairs import (COMMISSIONED, PAIR_PROTOCOLS, PAIR_TARGET, build_pairs, ceilings,
-                             identifiability_table, run_pair_protocols, setting_inference)
+from .classification_methods import (
+    DEFAULT_SEED,
+    METHODS,
+    PAPER_ACCURACY,
+    classification_spec,
+    folds_for,
+    method_makers,
+)
+from .classify_pairs import (
+    COMMISSIONED,
+    PAIR_PROTOCOLS,
+    PAIR_TARGET,
+    build_pairs,
+    ceilings,
+    identifiability_kO_section,
+    identifiability_table,
+    run_pair_protocols,
+    setting_inference,
+)
 from .common import DEFAULT_WORKERS, load_reference
 from .condition_cnn import torch_available
 from .condition_data import setting_parameters, unit_breaker
@@ -79,26 +95,6 @@ def run(out_dir: Path, *, seed: int = DEFAULT_SEED, quick: bool = False, workers
     _write_tables(out_dir, result)
     write_json(out_dir, "classify", result)
     return result
-
-
-def identifiability_kO_section(ident: dict) -> tuple:
-    """The markdown section of :func:`~.pair_setting.identifiability_kO`."""
-    k = ident["kO_free"]
-    rows = []
-    for name, r in k["sets"].items():
-        if r["rank"] < 3:
-            rows.append([name, r["rank"], "∞", "—", "—", r["unseen"]])
-        else:
-            rows.append([name, r["rank"], f"{r['condition_number']:.3g}", f"{100 * r['sd_kappa_one_pair']:.2f} %",
-                         f"{100 * r['sd_kappa_unit']:.3f} % ({k['n_pairs']} pairs)",
-                         f"setting sd {r['sd_steps_kappa_from_unit']:.3f} steps (if AO had no bias)"])
-    c = k["commissioned"]
-    rows.append(["pair + commissioning pair", 3, "—", "—", "known offset",
-                 f"setting sd {c['sd_steps']:.3f} steps"])
-    return (f"identifiability with the unit's spring rate free: unknowns P, f, κ = kO/kO_design "
-            f"(Cramér–Rao from the fits' covariance of AO, BO, CC on unit 1; +1 % of kO = "
-            f"{k['steps_per_kO_percent']:+.2f} steps)",
-            ["observations", "rank", "condition number", "sd κ, one pair", "sd κ, the unit", "setting"], rows)
 
 
 def _write_tables(out_dir: Path, result: dict) -> None:

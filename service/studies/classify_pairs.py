@@ -89,7 +89,7 @@ def run_pair_protocols(pairs: dict, folds, makers: dict, methods, *, desc: str =
             rest = np.arange(y2.size) != ref
             X2 = pairs[2][key]
             if m == "proposed":
-                r = train_test(lambda: CommissionedPairSetting(X2[ref], y2[ref]), pairs[1][key], y1,
+                r = train_test(lambda x=X2[ref], k=y2[ref]: CommissionedPairSetting(x, k), pairs[1][key], y1,
                                X2[rest], y2[rest])
             else:  # the baselines train on unit 1 and the same reference pair
                 r = train_test(make, np.vstack([pairs[1][key], X2[ref:ref + 1]]), np.append(y1, y2[ref]),
@@ -226,3 +226,23 @@ def identifiability_table(pairs: dict) -> dict:
     out["kO_free"] = identifiability_kO(base, cov, base.kO * STEP_M * base.rO, n_pairs=int(ok.sum()))
     out["kO_free"]["fit_covariance"] = {"order": ["AO", "BO", "CC"], "cov": cov.tolist()}
     return out
+
+
+def identifiability_kO_section(ident: dict) -> tuple:
+    """The markdown section of :func:`~.pair_setting.identifiability_kO`."""
+    k = ident["kO_free"]
+    rows = []
+    for name, r in k["sets"].items():
+        if r["rank"] < 3:
+            rows.append([name, r["rank"], "∞", "—", "—", r["unseen"]])
+        else:
+            rows.append([name, r["rank"], f"{r['condition_number']:.3g}", f"{100 * r['sd_kappa_one_pair']:.2f} %",
+                         f"{100 * r['sd_kappa_unit']:.3f} % ({k['n_pairs']} pairs)",
+                         f"setting sd {r['sd_steps_kappa_from_unit']:.3f} steps (if AO had no bias)"])
+    c = k["commissioned"]
+    rows.append(["pair + commissioning pair", 3, "—", "—", "known offset",
+                 f"setting sd {c['sd_steps']:.3f} steps"])
+    return (f"identifiability with the unit's spring rate free: unknowns P, f, κ = kO/kO_design "
+            f"(Cramér–Rao from the fits' covariance of AO, BO, CC on unit 1; +1 % of kO = "
+            f"{k['steps_per_kO_percent']:+.2f} steps)",
+            ["observations", "rank", "condition number", "sd κ, one pair", "sd κ, the unit", "setting"], rows)

@@ -7,7 +7,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from service.mechanics.spring_setting import (NUT_STEP_M, pair_reading, setting, step_nm, steps_per_kO)
+from service.mechanics.spring_setting import (
+    NUT_STEP_M,
+    pair_reading,
+    setting,
+    step_nm,
+    steps_per_kO,
+)
 from service.studies.condition_data import STEP_M
 
 

@@ -33,7 +33,7 @@ def unit(env, breaker):
 def test_setting_from_the_design_seat_then_from_the_commissioning_pair(env, unit, breaker):
     from service.mechanics.spring_setting import steps_per_kO
 
-    bid, ref, later, lone = unit
+    bid, ref, later, _ = unit
     r = env.client.get(f"/api/v1/operations/{later[1]}/setting", headers=env.h("reader"))
     assert r.status_code == 200, r.text
     s = r.json()
