@@ -186,3 +186,26 @@ def test_the_spring_rate_is_not_identifiable_from_bo_and_cc_and_one_known_pair_f
     full = ko["sets"]["pair AO, BO, CC"]
     assert full["rank"] == 3 and full["sd_kappa_unit"] == pytest.approx(full["sd_kappa_one_pair"] / np.sqrt(200))
     assert ko["commissioned"]["sd_steps"] == pytest.approx(np.sqrt(2) * ko["commissioned"]["sd_steps_kappa_known"])
+
+
+def test_the_pairs_only_study_reuses_the_pair_fits_and_writes_the_three_protocols(study, tmp_path):
+    """`hvcb study classify-pairs` on the quick study's cached pair fits (no fit is redone)."""
+    import shutil
+
+    from service.studies import classify_pair_run
+
+    out, res = study
+    for f in out.glob("dataset-*.npz"):
+        shutil.copy(f, tmp_path)
+    before = sorted(p.name for p in tmp_path.glob("dataset-*.npz"))
+    got = classify_pair_run.run(tmp_path, quick=True, methods=["proposed", "svm"])
+    assert sorted(p.name for p in tmp_path.glob("dataset-*.npz")) == before  # no new fit
+    assert got["pairs_only"] and set(got["protocols"]) == {"cv5_pair", "cross_unit_pair",
+                                                           "cross_unit_pair_commissioned"}
+    for p in ("cv5_pair", "cross_unit_pair", "cross_unit_pair_commissioned"):
+        assert got["protocols"][p]["proposed"] == pytest.approx(res["protocols"][p]["proposed"])
+    assert got["ceiling"]["single_opening_source"].startswith("the openings of the pair set")
+    md = (tmp_path / "classify.md").read_text()
+    assert "identifiability with the unit's spring rate free" in md and "kO from the unit's own AO·BC" in md
+    data = json.loads((tmp_path / "classify.json").read_text())
+    assert data["identifiability"]["kO_free"]["sets"]["pair BO, CC"]["condition_number"] is None
