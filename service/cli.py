@@ -30,6 +30,7 @@ COMMANDS = {
     "commission": ("service.storage.commands", "record a breaker's commissioning close–open pair"),
     "agent": ("service.agent.commands", "edge agent: acquisition only, forwarding captures to a central hvcb"),
     "refit": ("service.refit.commands", "re-fit stored operations (resumable; old results kept)"),
+    "report": ("service.reports.commands", "a breaker's condition report (PDF)"),
 }
 
 
