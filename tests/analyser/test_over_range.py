@@ -165,3 +165,42 @@ def test_inspect_lists_the_masked_spans(tmp_path, capsys):
     assert main(["inspect", str(path)]) == 0
     out = capsys.readouterr().out
     assert "masked    30 over-range sample(s) in 1 span(s)" in out and "T1: 30 samples, 325.00–327.90 ms" in out
+
+
+def _shared_example_with(span_ms: tuple) -> str:
+    """The shared field-layout example with T1 written '∞' over ``span_ms`` (its one wired pole)."""
+    from tests.conftest import shared_dir
+
+    path = shared_dir() / "realworld" / "analyser-csv" / "example-CO-10kHz.csv"
+    if not path.is_file():
+        pytest.skip(f"the shared analyser example is absent ({path})")
+    lines = path.read_text(encoding="utf-8").splitlines()
+    head = next(i for i, ln in enumerate(lines) if ln.startswith("Coil Current C1 (A)"))
+    col = lines[head].split(",").index("Contact Travel T1 (mm)")
+    for k in range(int(span_ms[0] * 10), int(span_ms[1] * 10) + 1):  # 10 kS/s: sample k at k/10 ms
+        cells = lines[head + 1 + k].split(",")
+        cells[col] = "∞"
+        lines[head + 1 + k] = ",".join(cells)
+    return "\n".join(lines) + "\n"
+
+
+def test_the_shared_field_example_with_over_range_while_closed_is_stored_and_its_opening_fitted():
+    """The field layout (shared example, one pole wired): over-range for 3 ms while the breaker
+    rests closed, between the closing and the trip. Both operations are kept, the opening fitted."""
+    cap, b = _capture(_shared_example_with((200.0, 202.9)))
+    assert cap.meta["travel_channel"] == "T1" and [(m["channel"], m["count"]) for m in cap.meta["masked"]] == [("T1", 30)]
+    ops = upload_operations(cap, b, None)
+    assert [k for _, k in ops] == ["close", "open"]
+    opening = ops[1][0]
+    r = fit_capture(opening, b, "open")
+    assert r.rmse_rad < 1.5 * r.noise_rad
+    for c, _ in ops:  # an operation lists only the spans inside the samples it keeps
+        assert all(0 <= m["first_index"] <= m["last_index"] < c.travel.size for m in c.meta["masked"])
+
+
+def test_the_shared_field_example_with_over_range_in_the_opening_says_why_it_cannot_fit():
+    cap, b = _capture(_shared_example_with((320.0, 322.9)))
+    ops = upload_operations(cap, b, None)
+    assert [k for _, k in ops] == ["close", "open"]  # read and kept whole
+    with pytest.raises(FitError, match=r"travel T1 is over-range .* T1: 30 samples"):
+        fit_capture(ops[1][0], b, "open")
