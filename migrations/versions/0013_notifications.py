@@ -1,14 +1,14 @@
 """notifications: the outbox of alarm events, each route's progress and the deliveries (issue 38)
 
 Revision ID: 0013
-Revises: 0011
+Revises: 0014
 """
 from alembic import op
 import sqlalchemy as sa
 
 
 revision = '0013'
-down_revision = '0011'
+down_revision = '0014'
 branch_labels = None
 depends_on = None
 
