@@ -18,6 +18,8 @@ from pydantic import AliasChoices, BaseModel, Field, field_validator, model_vali
 from pydantic_settings import (BaseSettings, PydanticBaseSettingsSource, SettingsConfigDict,
                                TomlConfigSettingsSource)
 
+from service.notifications.routes import NotificationSettings
+
 REPO_ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_CONFIG = REPO_ROOT / "config" / "default.toml"
 
@@ -245,6 +247,9 @@ class Settings(BaseSettings):
                                          description="raw-capture retention ([retention] table)")
     alarms: dict = Field(default_factory=dict, description="drift detector settings, see docs/alarms.md "
                          "(service.alarms.settings.DriftSettings)")
+    notifications: NotificationSettings = Field(
+        default_factory=NotificationSettings,
+        description="where alarm and prognosis events are sent ([notifications], docs/notifications.md)")
     iec61850_port: int | None = Field(None, ge=1, le=65535,
                                       description="IEC 61850 (MMS) server port; empty = off (102 is the "
                                       "standard port and needs privileges), see docs/iec61850.md")

@@ -68,6 +68,8 @@ def _lanes_of(item) -> list[str]:
         lanes.append("Celery/Redis")
     if "browser" in names:
         lanes.append("browser (Chromium)")
+    if "promtool" in names:
+        lanes.append("Prometheus rules (promtool)")
     if "iec61850" in str(item.path):
         lanes.append("IEC 61850")
     if "samples_dir" in names or _reads_shared(item.path):

@@ -25,7 +25,7 @@ LAYERS: list[tuple[str, ...]] = [
     ("drivers", "service.breaker_file", "service.breaker_travel", "service.breaker_limits",
      "service.acquisition"),  # captures, DAQs, breaker files
     ("service.estimation", "service.storage", "service.alarms", "service.prognosis", "service.prototypes"),
-    ("service.diagnosis", "service.studies"),
+    ("service.diagnosis", "service.studies", "service.notifications"),
     ("service.jobs", "service.workers", "service.refit", "service.agent", "service.iec61850",
      "service.settings", "service.reports"),
     ("service.api", "service.web", "service.cli"),

@@ -113,6 +113,13 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
         app.state.retention = RetentionSchedule(settings, Session)  # [retention]: prunes raw captures
         if start_monitor:
             app.state.retention.start()
+        from service.notifications.capture import install as capture_notifications
+        from service.notifications.notifier import Notifier
+
+        capture_notifications()  # alarm transitions write their events (also via crud in this process)
+        app.state.notifier = Notifier(settings.notifications, Session)  # [notifications] routes
+        if start_monitor:
+            app.state.notifier.start()
         app.state.iec61850 = None
         if settings.iec61850_port:
             from service.iec61850.server import Iec61850Server
@@ -122,6 +129,7 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
                 app.state.iec61850.start()
             except Exception:
                 app.state.retention.stop()
+                app.state.notifier.stop()
                 if start_monitor:
                     daq.stop()
                     monitor.stop()
@@ -134,6 +142,7 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
         finally:
             health_stop.set()
             health_thread.join(timeout=10)
+            app.state.notifier.stop()
             app.state.retention.stop()
             if app.state.iec61850 is not None:
                 app.state.iec61850.stop()
@@ -170,6 +179,9 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
     from .routes_prognosis import router as prognosis_router  # issue 31
 
     app.include_router(prognosis_router)
+    from .routes_setting import router as setting_router  # issue 39: the spring setting
+
+    app.include_router(setting_router)
     from .routes_reports import router as reports_router  # issue 38: condition report, CSV exports
 
     app.include_router(reports_router)

@@ -9,7 +9,7 @@ from sqlalchemy import case, func, select
 from sqlalchemy.exc import DBAPIError, OperationalError
 
 from service.acquisition.daq_metrics import daq_state_metrics
-from service.storage.models import BreakerRow, DaqStatusRow, FitRow, OperationRow
+from service.storage.models import AlarmRow, BreakerRow, DaqStatusRow, FitRow, OperationRow, utcnow
 
 BUCKETS = (0.5, 1, 2, 5, 10, 20, 30, 60, 120, 300)
 
@@ -42,6 +42,13 @@ class _DbCollector:
 
                 names = dict(session.execute(select(BreakerRow.id, BreakerRow.name)).all())
                 soonest = {names[i]: v for i, v in soonest_by_breaker(session).items() if i in names}
+                alarms = session.scalars(select(AlarmRow).where(AlarmRow.state.in_(("raised", "acknowledged")))).all()
+                out_of_service = dict(session.execute(select(BreakerRow.name, BreakerRow.out_of_service_since)).all())
+                from service.notifications.metrics import notification_metrics
+
+                settings = getattr(self.app.state, "settings", None)
+                notify = notification_metrics(session, [r.name for r in settings.notifications.routes]
+                                              if settings is not None else [])
         except (OperationalError, DBAPIError):
             up.add_metric([], 0)
             yield up
@@ -80,6 +87,22 @@ class _DbCollector:
         for name, (parameter, median, _) in sorted(soonest.items()):
             ops.add_metric([name, parameter], float("inf") if median is None else median)
         yield ops
+        # Alarm states (issue 38, docker/prometheus/alerts.yml): one series per active alarm.
+        now = utcnow()
+        active = GaugeMetricFamily("hvcb_alarm_active", "1 per active drift alarm: its level, lifecycle state "
+                                   "(raised = unacknowledged) and whether it is shelved",
+                                   labels=["breaker", "parameter", "level", "state", "shelved"])
+        for a in alarms:
+            shelved = a.shelved_until is not None and now < a.shelved_until
+            active.add_metric([names.get(a.breaker_id, str(a.breaker_id)), a.parameter, a.level, a.state,
+                               "true" if shelved else "false"], 1)
+        yield active
+        oos = GaugeMetricFamily("hvcb_breaker_out_of_service", "1 while the breaker is out of service "
+                                "(maintenance: not watched)", labels=["breaker"])
+        for name, since in sorted(out_of_service.items()):
+            oos.add_metric([name], 0 if since is None else 1)
+        yield oos
+        yield from notify
 
 
 class LocalMetrics:

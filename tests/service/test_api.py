@@ -35,6 +35,8 @@ OPERATOR_ROUTES = {("POST", "/api/v1/breakers/{breaker_id}/captures"), ("POST", 
 OPERATOR_ROUTES |= {("POST", "/api/v1/alarms/{alarm_id}/shelve"), ("POST", "/api/v1/alarms/{alarm_id}/unshelve"),
                     ("POST", "/api/v1/breakers/{breaker_id}/out-of-service"),
                     ("PUT", "/api/v1/breakers/{breaker}/temperature")}
+# the unit's commissioning pair (service/api/routes_setting.py)
+OPERATOR_ROUTES |= {("POST", "/api/v1/breakers/{name}/commissioning")}
 ADMIN_ROUTES = {("POST", "/api/v1/breakers/{breaker_id}/return-to-service"),
                 ("POST", "/api/v1/breakers"), ("POST", "/api/v1/breakers/{breaker_id}/baseline/reset"),
                 ("GET", "/api/v1/keys"), ("POST", "/api/v1/keys"), ("DELETE", "/api/v1/keys/{key_id}"),
