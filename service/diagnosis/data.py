@@ -76,8 +76,10 @@ def block_samples(sample_rate: float) -> int:
     return max(1, int(round(float(sample_rate) * BLOCK_S)))
 
 
-def window_data(capture, fit, breaker: Breaker, operation: str) -> WindowData:
-    """Cut the fit's valid window out of ``capture`` and block-average it."""
+def window_data(capture, fit, breaker: Breaker, operation: str, valid=None) -> WindowData:
+    """Cut the fit's valid window out of ``capture`` and block-average it. ``valid``: the mask
+    of the samples that are numbers (``windows.valid_samples``); a block holding any other is
+    left out, so the evidence rests on recorded samples only."""
     y_all = operation_coordinate(capture.travel, operation, breaker.stroke)
     t_all = capture.t
     sel = (t_all >= fit.window_s[0]) & (t_all <= fit.window_s[1])
@@ -86,6 +88,9 @@ def window_data(capture, fit, breaker: Breaker, operation: str) -> WindowData:
     count = np.diff(np.append(edges, t.size)).astype(float)
     tb = np.add.reduceat(t, edges) / count
     yb = np.add.reduceat(y, edges) / count
+    if valid is not None:
+        bad = np.add.reduceat((~np.asarray(valid, bool)[sel]).astype(float), edges) > 0
+        tb, yb, count = tb[~bad], yb[~bad], count[~bad]
     dc = float(getattr(fit, "dc_used", None) or breaker.design_parameters()["DC"])
     return WindowData(tb, yb, count, float(fit.noise_rad), float(fit.window_s[0]), dc,
                       capture.source or "capture")

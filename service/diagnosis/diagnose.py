@@ -3,8 +3,11 @@
 A one-way pipeline, one module per stage:
 
 1. ``windows``    the captures' data: valid windows, noise, reduced fit, state Jacobian;
-2. ``hypotheses`` joint fits per hypothesis (none, each family, pairs, outside the catalogue);
-3. ``evidence``   posterior probabilities (marginal likelihoods under the in-motion noise model);
+2. ``predictive`` the evidence, the capture as its unit: each hypothesis (none, each family's
+                  subspace, pairs, a shared discrepancy) scored by leave-one-capture-out predictive
+                  density, combined by pseudo-BMA+;
+3. ``hypotheses`` the nonlinear refit of the leading hypotheses only, to report how far the gap
+                  shrinks (``evidence``: the noise model's figures beside the weights);
 4. ``decision``   the one rule: state what reaches P_NAME (calibrated), else ambiguous;
 5. ``report``     the JSON-ready result (+ ``measurement``: the recording that would decide).
 """
@@ -13,12 +16,15 @@ from __future__ import annotations
 
 import time
 
+import numpy as np
+
 from ..mechanics.breaker import Breaker
 from ..mechanics.effects import EFFECT_NAMES
 from .decision import decide
 from .errors import DiagnosisError
 from .evidence import evidence
-from .hypotheses import catalogue_for, fit_all, holdout
+from .hypotheses import catalogue_for, fit_reported, holdout
+from .predictive import score
 from .measurement import next_measurement
 from .report import build
 from .windows import prepare
@@ -62,9 +68,27 @@ def diagnose(captures, breaker: Breaker, operation: str, *, effects=None, seed: 
     if not catalogue:
         raise DiagnosisError(f"none of the given effects acts on an {operation} operation")
     windows = prepare(list(captures), breaker, operation, fitter=fitter, seed=seed)
-    fits = fit_all(windows, catalogue)
-    ev = evidence(fits)
+    try:
+        return _diagnose(windows, catalogue, strengths, next_measurements, t0, time.perf_counter() - t0)
+    except (ArithmeticError, ValueError, np.linalg.LinAlgError):
+        # a numerical failure is the records' (non-finite model values, a fit that did not
+        # converge): said in words naming them, never the library's message
+        names = ", ".join(c.data.source for c in windows.captures)
+        raise DiagnosisError(f"{names}: the joint fit of the hypotheses did not converge on these records "
+                             f"(a model value or a residual is not a number): refused, no diagnosis") from None
+
+
+def _diagnose(windows, catalogue, strengths, next_measurements, t0, t_prepare):
+    t1 = time.perf_counter()
+    scores = score(windows, catalogue)
+    t2 = time.perf_counter()
+    fits = fit_reported(windows, scores, rivals=2 if next_measurements else 1)
+    t3 = time.perf_counter()
+    ev = evidence(fits, scores)
     dec = decide(fits, ev, catalogue, strengths)
     nm = next_measurement(fits, dec.rivals) if (next_measurements and dec.status == "ambiguous") else []
     ho = holdout(windows, fits.hypotheses[dec.hypothesis]) if dec.status == "named" else None
-    return build(fits, ev, dec, nm, ho, time.perf_counter() - t0)
+    result = build(fits, ev, dec, nm, ho, time.perf_counter() - t0, scores)
+    result["stages_s"] = {"prepare": t_prepare, "evidence": t2 - t1, "report_refit": t3 - t2,
+                          "rest": time.perf_counter() - t3}
+    return result

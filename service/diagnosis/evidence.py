@@ -69,7 +69,18 @@ def lag1(residuals) -> float:
     return num / den if den > 0 else 0.0
 
 
-def evidence(fits: Fits) -> Evidence:
+def evidence(fits: Fits, scores=None) -> Evidence:
+    """The noise model's figures from the fits; the probabilities are the predictive weights of
+    ``scores`` (``predictive``) when given, else the fits' own Schwarz evidence (the former
+    method, kept for comparison)."""
+    ev = _fits_evidence(fits)
+    if scores is None:
+        return ev
+    return Evidence(dict(scores.elpd), dict(scores.prior), dict(scores.weights), ev.dispersion, ev.rho, ev.s2,
+                    ev.n, ev.n_eff, ev.log_bf_discrepancy)
+
+
+def _fits_evidence(fits: Fits) -> Evidence:
     n = fits.windows.n
     hyps = fits.hypotheses
     out = hyps["outside_catalogue"]

@@ -363,3 +363,46 @@ def _shrink(chi_before, chi_after, n):
     g0 = max(chi_before - n, 0.0)
     g1 = max(chi_after - n, 0.0)
     return 0.0 if g0 <= 0 else float(1.0 - np.sqrt(g1 / g0))
+
+
+REPORT_P = 0.05   # a hypothesis below this predictive weight is neither reported nor a rival worth refitting
+
+
+def fit_reported(windows: Windows, scores, rivals: int = 1) -> "Fits":
+    """The nonlinear joint refit of what is reported: ``none``, the ``rivals`` most probable
+    hypotheses holding catalogued effects (by the predictive weights) and ``outside`` on the
+    best of them. The evidence is not taken from these fits (``predictive`` gives it); they say
+    how far the gap shrinks and what the effect does to the parameters."""
+    hyps = {"none": none_fit(windows)}
+    ranked = [k for k, p in scores.ranked() if k not in ("none", "outside_catalogue") and p >= REPORT_P]
+    for name in ranked[:rivals]:
+        effects = tuple(name.split("+"))
+        if name in getattr(scores, "exact", {}):
+            # the scoring's own exact refit, polished further for the report (it says how far
+            # the gap shrinks and the fitted strength)
+            h = scores.exact[name]
+            if len(effects) == 1 and h.chi2 > windows.n + 5.0 * np.sqrt(2.0 * windows.n):
+                # still above the noise: also the full screen from every start (multimodal shapes)
+                h0 = fit_hypothesis(windows, effects, family_starts(effects[0]))
+                h1 = refine_exact(windows, h0)
+                hb = fit_hypothesis(windows, effects, family_starts(effects[0]), caps=h1.captures)
+                h2 = refine_exact(windows, hb) if hb.chi2 < h1.chi2 else h1
+                h = min((h, h1, h2), key=lambda x: x.chi2)
+            hyps[name] = h
+            continue
+        if len(effects) == 1:
+            h = fit_hypothesis(windows, effects, family_starts(effects[0]))
+        else:
+            z0 = []
+            for e in effects:
+                h1 = hyps.get(e) or fit_hypothesis(windows, (e,), family_starts(e))
+                z0 += [h1.phi[e][0], *h1.phi[e][1]]
+            h = fit_hypothesis(windows, effects, [np.array(z0, float)])
+        if h.chi2 < hyps["none"].chi2:
+            h = refine_exact(windows, h)
+        hyps[name] = h
+    fits = Fits(windows, hyps)
+    cat = [h for h in hyps.values() if h.effects]
+    best = min(cat, key=lambda h: h.chi2) if cat else hyps["none"]
+    hyps["outside_catalogue"] = outside_fit(windows, best)
+    return fits

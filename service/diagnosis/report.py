@@ -117,7 +117,26 @@ def discrepancy_report(fits: Fits, ev: Evidence) -> dict:
             "shape": shape, "knot_spacing_ms": 1e3 * KNOT_S}
 
 
-def build(fits: Fits, ev: Evidence, dec: Decision, next_meas: list, holdout, runtime_s: float) -> dict:
+def predictive_report(scores, dec: Decision) -> dict | None:
+    """The evidence in its own units: per unit (capture, or ~2 ms stretch of one capture) the
+    LOO log predictive density of the leading hypotheses against ``none``, the elpd difference
+    of the first two with its standard error, and the linear fit's gap shrink."""
+    if scores is None:
+        return None
+    ranked = [k for k, _ in scores.ranked()]
+    a, b = ranked[0], ranked[1] if len(ranked) > 1 else ranked[0]
+    return {"units": scores.units, "n_units": scores.n_units,
+            "elpd": {k: float(v) for k, v in sorted(scores.elpd.items(), key=lambda kv: -kv[1])},
+            "per_unit": {k: [float(x) for x in scores.lpd[k]] for k in ranked[:3]},
+            "first_two": [a, b], "elpd_difference": float(scores.elpd[a] - scores.elpd[b]),
+            "elpd_difference_se": scores.se_difference(a, b) if a != b else 0.0,
+            "dimension": dict(scores.dim), "linear_shrink": dict(scores.linear_shrink),
+            "noise_ar": [{"coefficients": c, "innovation_sd": sd} for c, sd in scores.noise_ar],
+            "method": "leave-one-capture-out predictive density, pseudo-BMA+ (Yao et al. 2018)"}
+
+
+def build(fits: Fits, ev: Evidence, dec: Decision, next_meas: list, holdout, runtime_s: float,
+          scores=None) -> dict:
     w = fits.windows
     op, br, caps = w.operation, w.breaker, w.captures
     block = w.block
@@ -187,13 +206,28 @@ def build(fits: Fits, ev: Evidence, dec: Decision, next_meas: list, holdout, run
         "candidates": [{"effect": k, "probability": p} for k, p in list(probs.items())[:6]],
         "how_far": None,
         "runtime_s": float(runtime_s),
+        "evidence": predictive_report(scores, dec),
+        "left_out": list(getattr(w, "left_out", []) or []),
     }
     result["message"] = message(result)
     return result
 
 
+ONE_CAPTURE = " One capture cannot decide between close rivals: its units of evidence are ~2 ms stretches of it."
+
+
 def message(r: dict) -> str:
-    """The result in one sentence: the same answer and probability as the table."""
+    """The result in one sentence: the same answer and probability as the table (with one
+    capture, the caution that it cannot decide between close rivals)."""
+    text = _message(r)
+    if r["captures"] == 1 and r["status"] != "ambiguous":
+        text += ONE_CAPTURE
+    for d in r.get("left_out") or []:
+        text += f" {d['source']}: {d['reason']}."
+    return text
+
+
+def _message(r: dict) -> str:
     g = r["gap"]
     ratio = g["before_rms_rad"] / g["noise_rad"]
     n = r["captures"]
@@ -210,8 +244,14 @@ def message(r: dict) -> str:
         at = f", largest in the {pk['phase'].replace('_', ' ')} phase" if pk["phase"] else ""
         return (f"A gap of {ratio:.2f}× the noise floor over {who} that no catalogued effect describes "
                 f"(outside the catalogue, probability {p:.2f}{at}).")
-    return ("Ambiguous: " + ", ".join(f"{in_words(x['effect'])} {x['probability']:.2f}" for x in r["rivals"])
-            + f" over {who}; see the next measurement.")
+    names = [x["effect"] for x in r["rivals"][:2]]
+    say = (f"Cannot decide between {in_words(names[0])} and {in_words(names[1])}" if len(names) == 2
+           else f"Cannot decide ({in_words(names[0])} at most)" if names else "Cannot decide")
+    one = ONE_CAPTURE + " Record more operations." if n == 1 else ""
+    nm = r.get("next_measurement") or []
+    nxt = f" The recording that would decide: {nm[0]['measurement']}." if nm else ""
+    return (say + " (" + ", ".join(f"{in_words(x['effect'])} {x['probability']:.2f}" for x in r["rivals"])
+            + f") over {who}.{one}{nxt}")
 
 
 def percent(v: float) -> str:

@@ -13,7 +13,8 @@ over captures and blocks).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import re
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.ndimage import uniform_filter1d
@@ -33,6 +34,12 @@ TAU_SPAN = (-2e-3, 5e-3)
 GAP_P = 1e-3        # a baseline whose χ² is this improbable is also polished from the design state
 MIN_BLOCKS = 20     # 2.5 ms of blocks: fewer cannot hold a state of 5-6 parameters and a test
 JAC_STEP = 1e-4     # relative finite-difference step of the state Jacobian
+# A capture whose reduced fit leaves more than this mean χ² per block (≈ 32 times the noise per
+# block, rms) has a fit that did not converge (a wrong basin, a record the reduced model cannot
+# start from): no catalogued effect comes near it (the strongest at realistic strength leave
+# 2-15 per block), and its residual would dominate every unit-level score. It is left out of the
+# evidence, named, and the others are diagnosed (issue 36 item 7).
+FAILED_FIT = 1000.0
 
 
 @dataclass
@@ -65,6 +72,7 @@ class Windows:
     operation: str
     breaker: Breaker
     captures: list
+    left_out: list = field(default_factory=list)    # [{"source", "reason"}]: captures not used
 
     @property
     def n(self) -> int:
@@ -85,19 +93,30 @@ def prepare(captures, breaker: Breaker, operation: str, *, fitter=None, seed: in
     if fitter is None:
         from ..estimation import fit_capture as fitter
     fits = []
-    for cap in captures:
+    for raw in captures:
+        cap, valid = valid_samples(raw)
         check_breaker(cap, breaker, operation)
+        name = cap.source or "capture"
         try:
-            fits.append((cap, fitter(cap, breaker, operation, seed=seed)))
+            fr = fitter(cap, breaker, operation, seed=seed)
+        except (ArithmeticError, np.linalg.LinAlgError, RuntimeError):
+            raise DiagnosisError(f"{name}: the reduced model's fit did not converge on this record: "
+                                 f"refused") from None
         except ValueError as exc:
             msg = str(exc)
-            name = cap.source or "capture"
+            if re.search(r"\b(nans?|infs?|infinity)\b", msg, re.IGNORECASE):     # a library's, not ours
+                raise DiagnosisError(f"{name}: the reduced model's fit failed on this record "
+                                     f"({int((~valid).sum())} samples not numbers): refused") from None
             raise DiagnosisError(msg if msg.startswith(name) else f"{name}: {msg}") from None
-    breaker = with_estimated_structure(breaker, [fr for _, fr in fits])
+        if not (np.isfinite(getattr(fr, "noise_rad", np.nan)) and getattr(fr, "noise_rad", 0.0) > 0):
+            raise DiagnosisError(f"{name}: the record's noise floor could not be estimated (no valid "
+                                 f"samples at rest before the motion): refused")
+        fits.append((cap, fr, valid))
+    breaker = with_estimated_structure(breaker, [fr for _, fr, _ in fits])
     design = dict(zip(STATE[operation], design_state(breaker, operation)))
     datas, starts = [], []
-    for cap, fr in fits:
-        data = window_data(cap, fr, breaker, operation)
+    for cap, fr, valid in fits:
+        data = window_data(cap, fr, breaker, operation, valid=valid)
         if data.t.size < MIN_BLOCKS:
             raise DiagnosisError(f"{data.source}: the valid window lasts only "
                                  f"{1e3 * (data.t[-1] - data.t[0]) if data.t.size else 0.0:.1f} ms: too short to "
@@ -105,11 +124,54 @@ def prepare(captures, breaker: Breaker, operation: str, *, fitter=None, seed: in
         datas.append(data)
         starts.append(np.array([fr.parameters.get(k, design[k]) for k in STATE[operation]]
                                + [fr.onset_delay_s]))
-    out = []
+    out, left_out = [], []
     for data, x0 in zip(datas, starts):
         x = baseline(x0, data, breaker, operation)
-        out.append(linearise(x, data, breaker, operation))
-    return Windows(operation, breaker, out)
+        cw = linearise(x, data, breaker, operation)
+        z = cw.project_out(cw.r)
+        per_block = float(np.mean(z * z)) if z.size else 0.0
+        if not np.isfinite(per_block) or per_block > FAILED_FIT:
+            left_out.append({"source": data.source,
+                             "reason": f"the reduced model's fit did not converge on this record (it leaves "
+                                       f"{np.sqrt(per_block) if np.isfinite(per_block) else float('inf'):.0f} "
+                                       f"times the noise per block): left out of the evidence"})
+            continue
+        out.append(cw)
+    if not out:
+        raise DiagnosisError("; ".join(f"{d['source']}: {d['reason'].replace(': left out of the evidence', '')}"
+                                       for d in left_out) + ": refused, no diagnosis")
+    w = Windows(operation, breaker, out)
+    w.left_out = left_out
+    return w
+
+
+# A record whose travel holds more samples that are not numbers (∞, NaN: an over-range, a
+# dropped frame) than this share is refused: what is left no longer holds the motion's phases.
+MAX_INVALID = 0.2
+
+
+def valid_samples(cap):
+    """``cap`` with its non-finite travel samples bridged linearly (for the reduced fit, which
+    needs a uniform series), and the mask of the valid ones; the diagnosis's evidence later uses
+    only blocks made of valid samples (``data.window_data``). Refused in words when too few are
+    valid."""
+    import dataclasses
+
+    y = np.asarray(cap.travel, float)
+    valid = np.isfinite(y)
+    mask = getattr(cap, "mask", None)          # an over-range mask from the reader, when it has one
+    if mask is not None and np.shape(mask) == y.shape:
+        valid &= ~np.asarray(mask, bool)
+    if valid.all():
+        return cap, valid
+    name = cap.source or "capture"
+    bad = int((~valid).sum())
+    if valid.sum() < max(4, (1.0 - MAX_INVALID) * y.size):
+        raise DiagnosisError(f"{name}: {bad} of {y.size} travel samples are not numbers (∞ or NaN, e.g. "
+                             f"over-range or dropped): too few valid samples to diagnose this record")
+    idx = np.arange(y.size)
+    filled = np.interp(idx, idx[valid], y[valid])
+    return dataclasses.replace(cap, travel=filled), valid
 
 
 def with_estimated_structure(breaker: Breaker, fits) -> Breaker:
@@ -145,11 +207,38 @@ def linearise(x, data: WindowData, breaker: Breaker, operation: str) -> CaptureW
         cols.append((model_curve(xp, data, breaker, operation) - m0) * w / h)
     J = np.column_stack(cols)
     J = np.where(np.isfinite(J), J, 0.0)
-    # orthonormal basis of what the state can move; a direction the data cannot see (a damping
-    # that acts nowhere in this window) is dropped rather than turned into a random column
-    U, sv, _ = np.linalg.svd(J, full_matrices=False)
+    S = sensor_columns(x, data, breaker, operation, m0)
+    # orthonormal basis of what the nuisance can move (the state, τ and the sensor); a direction
+    # the data cannot see (a damping that acts nowhere in this window) is dropped rather than
+    # turned into a random column
+    N = np.column_stack([J, S])
+    U, sv, _ = np.linalg.svd(N / np.maximum(np.linalg.norm(N, axis=0), 1e-300), full_matrices=False)
     Q = U[:, sv > sv[0] * 1e-8] if sv.size and sv[0] > 0 else U[:, :0]
     return CaptureWindow(data, np.asarray(x, float), np.where(np.isfinite(r), r, 0.0), J, Q)
+
+
+CAM_KEY_STEP = 1e-4   # [rad] finite-difference step of the cam keying (units vary by ±5 mrad)
+CAM_KEYING = True
+
+
+def sensor_columns(x, data: WindowData, breaker: Breaker, operation: str, m0=None) -> np.ndarray:
+    """The measurement's own nuisance, whitened (issue 36 item 3), as columns beside the state
+    Jacobian: the transducer's zero (a constant [rad]), its gain (the reading itself: with the zero
+    they span any affine map of the reading, in either operation's coordinate) and, for a closing,
+    the cam's keying φ in θ2 = h(θ1 − φ) (∂model/∂φ by a finite difference). All three are
+    (nearly) linear, so they cost one column each in every linearised score."""
+    w = data.weight
+    m0 = model_curve(x, data, breaker, operation) if m0 is None else m0
+    cols = [w, m0 * w]
+    if operation == "close" and breaker.cam is not None and CAM_KEYING:
+        import dataclasses
+
+        cam = breaker.cam
+        keyed = dataclasses.replace(breaker, cam=dataclasses.replace(cam, theta1=np.asarray(cam.theta1) + CAM_KEY_STEP))
+        mk = model_curve(x, data, keyed, operation)
+        cols.append((mk - m0) * w / CAM_KEY_STEP)
+    S = np.column_stack(cols)
+    return np.where(np.isfinite(S), S, 0.0)
 
 
 def _bounds(x0, operation):

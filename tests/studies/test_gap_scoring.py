@@ -123,16 +123,27 @@ def test_lopo_never_sees_the_scored_prototype(monkeypatch):
 
 
 def test_summary_calibrates_held_out_prototypes_by_the_development_map(tmp_path):
+    """E (blind, issue 36) is held out; D is a development prototype since issue 36."""
     from service.studies.gap.report import summarise
 
-    rows = _cal_rows() + [dict(r, prototype="d") for r in _cal_rows()[:10]]
-    meta = {"seed": 1, "sizes": {}, "prototypes": ["a", "b", "c", "d"]}
+    rows = _cal_rows() + [dict(r, prototype="e") for r in _cal_rows()[:10]]
+    meta = {"seed": 1, "sizes": {}, "prototypes": ["a", "b", "c", "e"]}
     s = summarise(tmp_path, rows, meta)
     lopo_ = s["calibration"]["lopo"]
-    assert lopo_["b"]["fitted_on"] == ["a", "c"] and lopo_["d"]["fitted_on"] == ["a", "b", "c"]
-    assert s["calibration"]["map_all_development"]["n"] == 30        # D's rows never enter the map
-    assert "D calibrated on A+B+C" in (tmp_path / "gap.md").read_text()
-    assert s["per_prototype"]["d"]["top1_all_single"]["n"] == 10
+    assert lopo_["b"]["fitted_on"] == ["a", "c"] and lopo_["e"]["fitted_on"] == ["a", "b", "c"]
+    assert s["calibration"]["map_all_development"]["n"] == 30        # E's rows never enter the map
+    assert "E calibrated on A+B+C" in (tmp_path / "gap.md").read_text()
+    assert s["per_prototype"]["e"]["top1_all_single"]["n"] == 10
+
+
+def test_stated_gap_reduction_against_the_oracle():
+    from service.studies.gap.scoring import shrink_ratios, stated_reduction
+
+    r = {"gap": {"before_rms_rad": 2.0, "after_rms_rad": 1.0, "noise_rad": 1.0}, "blocks": 100,
+         "noise_model": {"samples_per_block": 16.0}, "oracle": {"delta_chi2": 4000.0}}
+    assert stated_reduction(r) == (4.0 - 1.0) * 100 * 16            # 4800
+    s = shrink_ratios([r, dict(r, oracle={"delta_chi2": 2000.0})])
+    assert s["ratios"] == [1.2, 2.4] and s["k"] == 1 and s["n"] == 2
 
 
 def test_the_shipped_map_loads_in_the_diagnosis(tmp_path):

@@ -11,7 +11,7 @@ from pathlib import Path
 from .calibration import apply_map, fit_map, lopo, raw_probability, write_shipped
 from .scoring import DEVELOPMENT, TARGETS, meets, reliability, right, score
 
-LABELS = {"top1_detectable": "top-1 on detectable", "none_on_healthy": "healthy → none",
+LABELS = {"top1_detectable": "top-1 on detectable", "top1_detectable_1000": "top-1 on oracle Δχ² ≥ 1,000", "none_on_healthy": "healthy → none",
           "wrong_names": "wrong names", "two_effect_both": "two effects: both",
           "outside_unexplained": "outside → unexplained", "stated_ge_0_9_right": "right when stated ≥ 0.9",
           "undetectable_none": "undetectable → none",
@@ -83,6 +83,10 @@ def markdown(figures, cal, meta) -> str:
     lines.append("| oracle: detectable single-effect groups | – | " + " | ".join(
         f"{figures[p]['oracle_detectable']['k']}/{figures[p]['oracle_detectable']['n']}" for p in protos) + " |")
     lines.append("| errors (refused) | – | " + " | ".join(str(figures[p]["errors"]) for p in protos) + " |")
+    lines.append("| stated gap reduction within ×1.5 of the oracle's (correctly named) | – | " + " | ".join(
+        cell(figures[p]["shrink_ratio"]) + (f", median {figures[p]['shrink_ratio']['median']:.2f}"
+                                            if figures[p]["shrink_ratio"].get("median") is not None else "")
+        for p in protos) + " |")
     bins = cal["stated"][protos[0]] if protos else []
     head = "| | " + " | ".join(f"{b['from']:.2f}–{b['to']:.2f}" for b in bins) + " |"
     lines += ["", "Reliability: probability of the answer vs fraction right (n; Wilson 95 %).", "",

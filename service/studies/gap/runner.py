@@ -59,7 +59,7 @@ def groups_of(d: Path, returned) -> list:
 
 
 KEEP = ("status", "effects", "answer", "answer_probability", "raw_probability", "probabilities", "rivals",
-        "absorbed", "gap", "materiality", "discrepancy")
+        "absorbed", "gap", "materiality", "discrepancy", "blocks", "noise_model", "evidence", "stages_s")
 
 
 def diagnose_group(job: dict) -> dict:

@@ -1,0 +1,594 @@
+"""Stage 3 — the capture as the unit of evidence (issue 36): each hypothesis is scored by how
+well it predicts a capture it was not fitted on.
+
+Why. Five captures hold ~25,000 samples. When no catalogued law is exactly the true shape, a
+misfit of a tenth of the noise between two wrong shapes is worth a Δχ² of ~250 over the samples,
+and whichever wrong family absorbs it best "wins" at 1.00; coloured vibration and a sensor zero
+inflate the same sum. An effect is a repeatable signature of the breaker; what varies from
+capture to capture (conditions, vibration, the sensor's zero) is what tells it from a flexible
+shape fitting noise. So the unit of evidence is the capture.
+
+The linear-Gaussian model, per capture i (everything whitened, then pre-whitened):
+
+* the nuisance tangent N_i: the capture's reduced state and τ (``windows.linearise``), the
+  sensor's zero and gain, and for a closing the cam's keying (``windows.sensor_columns``);
+  projected out of everything below (P⊥_i), i.e. each capture keeps its own nuisance in every
+  hypothesis and every fold;
+* noise: pre-whitened by the in-motion residual's AR(``AR_ORDER``) filter (Yule–Walker on what a
+  per-capture spline of 0.5 ms knots leaves, i.e. the vibration and the sensor noise, not the
+  smooth gap), scaled to its innovation variance: a filter, not a variance factor;
+* a hypothesis H is a basis X_i^H whose coefficients β are shared by the captures (one defect of
+  one breaker): each catalogued family is the low-dimensional subspace (SVD) of the signatures it
+  adds through capture i's own physics at the family's deterministic shapes (``hypotheses
+  .family_starts``), pairs are the union of two, and ``outside_catalogue`` is a shared cubic
+  B-spline in the capture's normalised motion time (knots every ``KNOT_S``), alone or beside the
+  best family;
+* β ~ N(0, g·(XᵀX)⁻¹) with g = n (Zellner's unit-information prior), so every fold's posterior and
+  predictive density are closed form.
+
+Leave one capture out (LOO): fit β on the others, score the held-out capture's projected
+residual by its predictive density N(X_j m, I + X_j V X_jᵀ) (Woodbury: with M = Σ XᵀX + Λ over
+all captures, C⁻¹ = I − X_j M⁻¹ X_jᵀ and ln det C = ln det M − ln det(M − X_jᵀX_j)). A shape that
+only soaks up misfit, or vibration that does not repeat, does not predict the held-out capture.
+With one capture, the units are its ~2 ms stretches (``UNIT_S``), and the result says one capture
+cannot decide between close rivals.
+
+Combination: pseudo-BMA+ (Yao, Vehtari, Simpson & Gelman 2018, Bayesian Analysis 13:917, §3.2),
+the points being captures: weights averaged over Bayesian-bootstrap draws α ~ Dirichlet(1, …, 1)
+of exp(U·Σ_j α_j lpd_Hj), U units. The spread of the per-capture scores carries the real noise,
+coloured or not: a hypothesis that wins on three captures and loses on two is not stated.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from itertools import combinations
+
+import numpy as np
+from scipy.interpolate import BSpline
+from scipy.signal import lfilter
+
+from ..mechanics.effects import REFERENCE_STRENGTHS as REALISTIC
+from .hypotheses import family_starts, signature
+from .windows import Windows
+
+AR_ORDER = 8           # the in-motion noise spectrum (vibration modes: two poles each)
+NOISE_KNOT_S = 2.0e-3  # [s] knots of the per-capture spline whose residual is the noise (> ~250 Hz)
+KNOT_S = 2.0e-3        # [s] knots of the shared discrepancy: below ~250 Hz, under the struck modes of the linkage
+UNIT_S = 2.0e-3        # [s] the units of a single capture
+FAMILY_DIM = 3         # a family's subspace: this many directions for every family, so that
+                       # the Occam factor never chooses between families, only the data do
+SHAPE_POINTS = 10      # quasi-random shapes per family (Halton, fixed) beside its starts
+PAIR_TOP = 3           # pairs of the best singles
+EXACT_TOP = 3          # effect hypotheses refitted exactly (and scored at their own profile)
+REFINE_TOP = 3         # families refitted nonlinearly about their best point
+REFINE_NFEV = 12       # least-squares evaluations of that refit
+SEGMENT = 8            # columns of a local discrepancy (~16 ms), every half of it
+BOOT = 4000            # Bayesian-bootstrap draws of pseudo-BMA+
+SEED = 36
+
+
+@dataclass
+class Scores:
+    """Per hypothesis: its basis dimension, per-unit LOO log predictive densities (relative to
+    ``none``), elpd (their sum), prior and pseudo-BMA+ weight; the units' kind and count."""
+
+    names: list
+    dim: dict
+    lpd: dict                 # name -> array over units (lpd_H − lpd_none)
+    elpd: dict
+    prior: dict
+    weights: dict
+    units: str                # "captures" or "stretches of one capture"
+    n_units: int
+    noise_ar: list = field(default_factory=list)   # per capture (AR coefficients, innovation sd)
+    linear_shrink: dict = field(default_factory=dict)
+    refined: dict = field(default_factory=dict)    # family -> its nonlinear HypothesisFit
+    exact: dict = field(default_factory=dict)      # hypothesis -> its exact joint refit
+
+    def ranked(self):
+        return sorted(self.weights.items(), key=lambda kv: -kv[1])
+
+    def se_difference(self, a: str, b: str) -> float:
+        """Standard error of elpd_a − elpd_b from the spread over the units (Vehtari et al. 2017)."""
+        d = self.lpd[a] - self.lpd[b]
+        return float(np.sqrt(d.size * np.var(d, ddof=1))) if d.size > 1 else float("inf")
+
+
+# --- noise: the in-motion AR filter ----------------------------------------------------------
+
+def yule_walker(e: np.ndarray, order: int = AR_ORDER):
+    """AR coefficients a (e_t = Σ a_k e_{t−k} + u_t) and the innovation variance, Yule–Walker."""
+    e = np.asarray(e, float) - float(np.mean(e))
+    n = e.size
+    r = np.array([float(np.dot(e[: n - k], e[k:])) / n for k in range(order + 1)])
+    if r[0] <= 0:
+        return np.zeros(order), 1.0
+    from scipy.linalg import solve_toeplitz
+
+    try:
+        a = solve_toeplitz(r[:order], r[1: order + 1])
+    except np.linalg.LinAlgError:
+        return np.zeros(order), float(r[0])
+    if not np.all(np.abs(np.roots(np.concatenate([[1.0], -a]))) < 1.0):   # keep the filter stable
+        return np.zeros(order), float(r[0])
+    return a, float(max(r[0] - np.dot(a, r[1: order + 1]), 1e-12 * r[0]))
+
+
+def spline_basis(t: np.ndarray, lo: float, hi: float, step: float) -> np.ndarray:
+    """Cubic B-splines on [lo, hi] with knots every ``step``, at ``t`` (clipped)."""
+    interior = np.arange(lo, hi, step)[1:]
+    knots = np.concatenate([[lo] * 4, interior, [hi] * 4])
+    return BSpline.design_matrix(np.clip(t, lo, hi), knots, 3).toarray()
+
+
+def _orth(A: np.ndarray, tol: float = 1e-8) -> np.ndarray:
+    if A.shape[1] == 0:
+        return A
+    nrm = np.maximum(np.linalg.norm(A, axis=0), 1e-300)
+    U, s, _ = np.linalg.svd(A / nrm, full_matrices=False)
+    return U[:, s > s[0] * tol] if s.size and s[0] > 0 else U[:, :0]
+
+
+@dataclass
+class _Cap:
+    r: np.ndarray          # projected, pre-whitened residual
+    cols: dict             # name -> projected, pre-whitened columns
+    t_rel: np.ndarray      # normalised motion time of the rows [s]
+    ar: tuple
+    f: object = None       # the capture's noise filter
+    Qw: np.ndarray = None  # orthonormal basis of its filtered nuisance tangent
+
+    def columns(self, sigs) -> np.ndarray:
+        """Whitened signatures (n × k) filtered and with the nuisance projected out."""
+        X = self.f(np.column_stack(sigs))
+        return X - self.Qw @ (self.Qw.T @ X)
+
+
+def _prewhiten(cw, n_drop: int = 0):
+    """The capture's in-motion noise filter: the AR spectrum of what a per-capture spline of
+    ``NOISE_KNOT_S`` knots leaves beside the nuisance (the vibration and the sensor noise above
+    ~250 Hz; the smooth gap is in the spline), floored at the sensor's white level (1, the
+    pre-trigger σ: below the spline's band nothing can be estimated, and no noise is quieter than
+    the sensor's), applied as a zero-phase filter 1/√S(f). Returns (filter, (a, innovation sd))."""
+    t = cw.data.t
+    B = spline_basis(t, float(t[0]), float(t[-1]) + 1e-9, max(NOISE_KNOT_S, 4 * float(np.median(np.diff(t)))))
+    B = B * cw.data.weight[:, None]
+    A = np.column_stack([cw.Q, B])
+    coef = np.linalg.lstsq(A, cw.r, rcond=None)[0]
+    e = cw.r - A @ coef
+    dof = max(e.size - min(A.shape[1], e.size - 1), 1)
+    a, v = yule_walker(e, AR_ORDER)
+    v *= e.size / dof
+    n = cw.r.size
+    nfft = int(2 ** np.ceil(np.log2(2 * n)))
+    w = np.linspace(0.0, np.pi, nfft // 2 + 1)
+    Aw = np.ones_like(w, dtype=complex)
+    for k, ak in enumerate(a, start=1):
+        Aw -= ak * np.exp(-1j * k * w)
+    S = np.maximum(v / np.abs(Aw) ** 2, 1.0)
+    H = 1.0 / np.sqrt(S)
+
+    def f(x):
+        X = np.fft.rfft(np.asarray(x, float), nfft, axis=0)
+        Y = np.fft.irfft(X * (H[:, None] if X.ndim == 2 else H), nfft, axis=0)[:n]
+        return Y[n_drop:]
+    return f, (a.tolist(), float(np.sqrt(v)))
+
+
+def motion_time(cw, breaker, operation):
+    """Rows' time since the capture's onset, normalised to the group's time scale later [s]; and
+    the capture's time to 90 % of its reduced curve's stroke (its speed) [s]."""
+    from .data import model_curve
+
+    tau = float(cw.x[-1])
+    tm = cw.data.t - tau
+    m = model_curve(cw.x, cw.data, breaker, operation)
+    span = float(np.max(m) - np.min(m)) if m.size else 0.0
+    base = float(m[0])
+    k = np.nonzero(np.abs(m - base) >= 0.9 * span)[0] if span > 0 else []
+    t90 = float(tm[k[0]]) if len(k) and tm[k[0]] > 0 else float(tm[-1])
+    return tm, max(t90, 1e-3)
+
+
+def family_points(effect: str) -> list:
+    """The family's parameter points whose signatures span its subspace: its deterministic
+    starts (``hypotheses.family_starts``) and SHAPE_POINTS shapes spread over its bounds
+    (a scrambled Halton sequence, fixed seed) at 0.6 and 1.5 × the realistic strength."""
+    from scipy.stats import qmc
+
+    from ..mechanics.effects import SIGNED, shape_bounds
+    from .hypotheses import strength_bounds
+
+    pts = list(family_starts(effect))
+    lo, hi = (np.asarray(b, float) for b in shape_bounds(effect))
+    if lo.size:
+        u = qmc.Halton(d=lo.size, scramble=True, seed=SEED).random(SHAPE_POINTS)
+        shapes = lo + u * (hi - lo)
+    else:
+        shapes = np.zeros((SHAPE_POINTS, 0))
+    s_lo, s_hi = strength_bounds(effect)
+    for k, sh in enumerate(shapes):
+        if effect == "rod_elasticity":
+            st = float(np.exp(np.log(s_lo) + (k + 0.5) / SHAPE_POINTS * (np.log(s_hi) - np.log(s_lo))))
+        else:
+            st = (0.6 if k % 2 else 1.5) * REALISTIC[effect] * (-1.0 if effect in SIGNED and k % 4 >= 2 else 1.0)
+        pts.append(np.concatenate([[st], sh]))
+    return pts
+
+
+# --- the bases -------------------------------------------------------------------------------
+
+def capture_bases(windows: Windows, catalogue, filters=None) -> list:
+    """Per capture: pre-whitened, projected residual, family signatures and discrepancy rows
+    (``filters``: the noise filters to use, e.g. those of the reduced fit's residual, so that
+    densities at another nuisance profile compare)."""
+    op, br = windows.operation, windows.breaker
+    times = [motion_time(cw, br, op) for cw in windows.captures]
+    t_ref = float(np.median([t90 for _, t90 in times]))
+    lo = min(float(tm[0]) * t_ref / t90 for tm, t90 in times)
+    hi = max(float(tm[-1]) * t_ref / t90 for tm, t90 in times) + 1e-9
+    out = []
+    for i, (cw, (tm, t90)) in enumerate(zip(windows.captures, times)):
+        f, ar = _prewhiten(cw) if filters is None else filters[i]
+        Qw = _orth(f(cw.Q))
+        P = (lambda X, Qw=Qw: X - Qw @ (Qw.T @ X))
+        cols = {}
+        for e in catalogue:
+            sigs = []
+            for z in family_points(e):
+                s = signature(cw, op, br, [(e, float(z[0]), np.asarray(z[1:], float))])
+                ok = bool(np.all(np.abs(s) < 1e3) and np.any(s != 0))
+                sigs.append(s if ok else np.full(s.shape, np.nan))
+            cols[e] = P(f(np.column_stack(sigs))) if sigs else np.zeros((cw.r.size, 0))
+        u = tm * t_ref / t90
+        D = spline_basis(u, lo, hi, KNOT_S) * cw.data.weight[:, None]
+        cols["__disc__"] = P(f(D))
+        out.append(_Cap(P(f(cw.r[:, None]))[:, 0], cols, u, ar, f, Qw))
+    return out
+
+
+def point_gain(caps, effect: str) -> float:
+    """Half the χ² the family's best sampled point removes with a free amplitude [nats]."""
+    best = 0.0
+    for k in range(caps[0].raw[effect].shape[1]):
+        xs = [c.raw[effect][:, k] for c in caps]
+        if not all(np.all(np.isfinite(x)) for x in xs):
+            continue
+        num = sum(float(x @ c.r) for x, c in zip(xs, caps))
+        den = sum(float(x @ x) for x in xs)
+        if den > 0:
+            best = max(best, 0.5 * num * num / den)
+    return best
+
+
+def best_point(caps, effect: str):
+    """The family's sampled point whose signature, alone and scaled, best fits the captures'
+    residual (the start of its local refinement)."""
+    pts = family_points(effect)
+    best, arg = -np.inf, 0
+    for k in range(len(pts)):
+        num = den = 0.0
+        ok = True
+        for c in caps:
+            x = c.raw[effect][:, k]
+            if not np.all(np.isfinite(x)):
+                ok = False
+                break
+            num += float(x @ c.r)
+            den += float(x @ x)
+        if ok and den > 0 and num / np.sqrt(den) > best:
+            best, arg = num / np.sqrt(den), k
+    z = np.array(pts[arg], float)
+    c = sum(float(cc.raw[effect][:, arg] @ cc.r) for cc in caps) / max(
+        sum(float(cc.raw[effect][:, arg] @ cc.raw[effect][:, arg]) for cc in caps), 1e-300)
+    z[0] *= float(np.clip(c, 0.2, 5.0)) if effect != "rod_elasticity" else 1.0
+    return z
+
+
+def refine_family(windows, caps, effect: str):
+    """The family's local subspace about its joint nonlinear fit (shared strength and shape,
+    each capture's state profiled, from ``best_point``): the SVD of its signatures at the fitted
+    point and at points moved along each parameter. Returns the fit."""
+    from ..mechanics.effects import shape_bounds
+    from .hypotheses import fit_hypothesis, strength_bounds
+
+    op, br = windows.operation, windows.breaker
+    z0 = best_point(caps, effect)
+    lo_s, hi_s = strength_bounds(effect)
+    z0[0] = float(np.clip(z0[0], lo_s, hi_s))
+    h = fit_hypothesis(windows, (effect,), [z0], refine_nfev=REFINE_NFEV)
+    local_subspace(windows, caps, effect, *h.phi[effect])
+    return h
+
+
+def local_subspace(windows, caps, effect: str, st: float, sh):
+    """The family's subspace about (strength, shape): SVD of its signatures there and at points
+    moved along each parameter (10 % of its range; the strength ×1.3)."""
+    from ..mechanics.effects import shape_bounds
+
+    op, br = windows.operation, windows.breaker
+    sh = np.asarray(sh, float)
+    lo, hi = (np.asarray(b, float) for b in shape_bounds(effect))
+    pts = [(st, sh), (st * 1.3, sh)]
+    for j in range(sh.size):
+        d = 0.1 * (hi[j] - lo[j])
+        for sg in (1.0, -1.0):
+            v = sh.copy()
+            v[j] = np.clip(v[j] + sg * d, lo[j], hi[j])
+            pts.append((st, v))
+    for c, cw in zip(caps, windows.captures):
+        sigs = [signature(cw, op, br, [(effect, float(a), np.asarray(b, float))]) for a, b in pts]
+        sigs = [np.where(np.abs(x) < 1e3, x, 0.0) for x in sigs]
+        c.cols[effect] = c.columns(sigs)
+    family_subspace(caps, effect)
+
+
+def exact_fit(windows, effects: tuple, refined: dict):
+    """The exact joint refit (``hypotheses.refine_exact``) of a family or pair, from the local
+    refits of its families."""
+    from .hypotheses import fit_hypothesis, refine_exact
+
+    if len(effects) == 1:
+        h = refined.get(effects[0]) or fit_hypothesis(windows, effects, [best_point_w(windows, effects[0])])
+    else:
+        z0 = []
+        for e in effects:
+            h1 = refined.get(e) or fit_hypothesis(windows, (e,), [best_point_w(windows, e)])
+            z0 += [h1.phi[e][0], *h1.phi[e][1]]
+        h = fit_hypothesis(windows, effects, [np.array(z0, float)], refine_nfev=REFINE_NFEV)
+    h = refine_exact(windows, h)
+    n = windows.n
+    if len(effects) == 1 and h.chi2 > n + 5.0 * np.sqrt(2.0 * n):
+        # the shape objective is multimodal (a contact touch's fraction moves a kink): a single
+        # still above the noise is screened again from every start at the states it found
+        from .hypotheses import family_starts
+
+        hb = fit_hypothesis(windows, effects, family_starts(effects[0]), caps=h.captures)
+        if hb.chi2 < h.chi2:
+            h2 = refine_exact(windows, hb)
+            if h2.chi2 < h.chi2:
+                h = h2
+    return h
+
+
+def best_point_w(windows, effect):
+    from .hypotheses import family_starts
+    return family_starts(effect)[0]
+
+
+def outside(caps, bases, mean_rows, shift=0.0):
+    """The best "outside the catalogue" alternative: the shared discrepancy everywhere or in one
+    stretch (SEGMENT columns, every half of it), alone or beside each hypothesis of ``bases``
+    (tuples of families), by LOO elpd less its Occam factor. Returns (lpd, value, k, count)."""
+    K = caps[0].cols["__disc__"].shape[1]
+    spans = [np.arange(K)] + [np.arange(a, min(a + SEGMENT, K)) for a in range(0, max(K - SEGMENT, 0) + 1, SEGMENT // 2)]
+    best = (None, -np.inf, 0)
+    n = 0
+    for base in [()] + [tuple(b) if isinstance(b, tuple) else (b,) for b in bases]:
+        for cols in spans:
+            for c in caps:
+                c.cols["__seg__"] = c.cols["__disc__"][:, cols]
+            uu, _ = _units(caps)
+            v = loo_lpd(uu, base + ("__seg__",)) + shift
+            k = cols.size + sum(caps[0].cols[b].shape[1] for b in base)
+            val = float(np.sum(v)) - occam(k, mean_rows)
+            n += 1
+            if val > best[1]:
+                best = (v, val, k)
+    return (*best, n)
+
+
+def family_subspace(caps, name: str):
+    """Reduce a family's columns to its shared subspace: SVD of the signatures stacked over the
+    captures (each column normalised), keeping ≤ MAX_DIM directions above DIM_TOL."""
+    S = np.vstack([c.cols[name] for c in caps])
+    if S.shape[1] == 0:
+        return
+    valid = np.all(np.isfinite(S), axis=0)        # a shape the integrator failed on, on any capture
+    S = np.where(valid[None, :], S, 0.0)
+    nrm = np.linalg.norm(S, axis=0)
+    keep = valid & (nrm > 0)
+    if not keep.any():
+        for c in caps:
+            c.cols[name] = c.cols[name][:, :0]
+        return
+    Sn = S[:, keep] / nrm[keep]
+    _, s, Vt = np.linalg.svd(Sn, full_matrices=False)
+    d = int(min(FAMILY_DIM, np.sum(s >= 1e-6 * s[0])))
+    V = Vt[:d].T / s[:d]
+    for c in caps:
+        c.cols[name] = (np.nan_to_num(c.cols[name][:, keep]) / nrm[keep]) @ V
+
+
+def drop_empty_discrepancy(caps):
+    """Discrepancy columns no capture's rows touch carry nothing: dropped."""
+    S = np.vstack([c.cols["__disc__"] for c in caps])
+    keep = np.linalg.norm(S, axis=0) > 1e-9 * max(float(np.linalg.norm(S)), 1e-300)
+    for c in caps:
+        c.cols["__disc__"] = c.cols["__disc__"][:, keep]
+
+
+# --- scoring ---------------------------------------------------------------------------------
+
+def _units(caps):
+    """The units of evidence: the captures, or with one capture its ~UNIT_S stretches."""
+    if len(caps) > 1:
+        return [(c.r, c.cols) for c in caps], "captures"
+    c = caps[0]
+    edges = np.arange(float(c.t_rel[0]), float(c.t_rel[-1]) + UNIT_S, UNIT_S)
+    idx = np.clip(np.searchsorted(edges, c.t_rel, side="right") - 1, 0, None)
+    units = []
+    for k in np.unique(idx):
+        sel = idx == k
+        units.append((c.r[sel], {n: X[sel] for n, X in c.cols.items()}))
+    return units, "stretches of one capture"
+
+
+def loo_lpd(units, names) -> np.ndarray:
+    """Per unit the LOO log predictive density of hypothesis ``names`` (a tuple of column
+    groups), minus that of ``none`` (closed form, see the module docstring)."""
+    Xs = [np.column_stack([cols[n] for n in names]) if names else np.zeros((r.size, 0)) for r, cols in units]
+    k = Xs[0].shape[1]
+    if k == 0:
+        return np.zeros(len(units))
+    A = sum(X.T @ X for X in Xs)
+    b = sum(X.T @ r for X, (r, _) in zip(Xs, units))
+    n = sum(r.size for r, _ in units)
+    M = A * (1.0 + 1.0 / n) + 1e-12 * np.trace(A) / k * np.eye(k)   # Zellner g = n
+    _, ldM = np.linalg.slogdet(M)
+    out = np.empty(len(units))
+    for j, (X, (r, _)) in enumerate(zip(Xs, units)):
+        XtX, Xtr = X.T @ X, X.T @ r
+        Mj = M - XtX
+        m = np.linalg.solve(Mj, b - Xtr)
+        e = r - X @ m
+        Xte = X.T @ e
+        quad = float(e @ e - Xte @ np.linalg.solve(M, Xte))
+        sign, ldMj = np.linalg.slogdet(Mj)
+        if sign <= 0:
+            out[j] = -np.inf
+            continue
+        out[j] = -0.5 * (quad - float(r @ r)) - 0.5 * (ldM - ldMj)
+    return out
+
+
+def linear_shrink(caps, names) -> float:
+    """1 − gap_after/gap_before of the shared linear fit on all captures (gap² = χ² − n)."""
+    X = [np.column_stack([c.cols[n] for n in names]) for c in caps]
+    A = sum(x.T @ x for x in X)
+    b = sum(x.T @ c.r for x, c in zip(X, caps))
+    beta = np.linalg.lstsq(A, b, rcond=None)[0]
+    n = sum(c.r.size for c in caps)
+    before = sum(float(c.r @ c.r) for c in caps)
+    after = sum(float(np.sum((c.r - x @ beta) ** 2)) for x, c in zip(X, caps))
+    g0, g1 = max(before - n, 0.0), max(after - n, 0.0)
+    return 0.0 if g0 <= 0 else float(1.0 - np.sqrt(g1 / g0))
+
+
+def occam(k: int, rows: float) -> float:
+    """The Occam factor [nats] of k shared coefficients: ½ k ln(rows of one unit), Schwarz's,
+    counted in one unit's blocks: a shape shared by the captures must pay for itself in the
+    evidence of a single capture (LOO alone charges it almost nothing, so every useless family
+    would keep a share near its prior and a healthy group could never be stated ``none``)."""
+    return 0.5 * k * float(np.log(max(rows, 2.0)))
+
+
+def pseudo_bma_plus(lpd: dict, prior: dict, seed: int = SEED) -> dict:
+    """pseudo-BMA+ weights over the units (Bayesian bootstrap), times the prior."""
+    names = list(lpd)
+    L = np.array([lpd[k] for k in names])               # H × U
+    L = np.where(np.isfinite(L), L, -1e12)
+    U = L.shape[1]
+    rng = np.random.default_rng(seed)
+    alpha = rng.dirichlet(np.ones(U), size=BOOT)        # B × U
+    z = U * (alpha @ L.T) + np.log([prior[k] for k in names])[None, :]
+    z -= z.max(axis=1, keepdims=True)
+    w = np.exp(z)
+    w /= w.sum(axis=1, keepdims=True)
+    m = w.mean(axis=0)
+    return {k: float(v) for k, v in zip(names, m)}
+
+
+def score(windows: Windows, catalogue) -> Scores:
+    caps = capture_bases(windows, catalogue)
+    for c in caps:
+        c.raw = {e: c.cols[e].copy() for e in catalogue}
+    for e in catalogue:
+        family_subspace(caps, e)
+    drop_empty_discrepancy(caps)
+    units, kind = _units(caps)
+    mean_rows = float(np.mean([r.size for r, _ in units]))
+    hyps = {"none": ()}
+    lpd = {"none": np.zeros(len(units))}
+    for e in catalogue:
+        if caps[0].cols[e].shape[1]:
+            hyps[e] = (e,)
+            lpd[e] = loo_lpd(units, (e,))
+    singles = sorted((e for e in hyps if e != "none"), key=lambda e: -float(np.sum(lpd[e])))
+    # the leading families refitted nonlinearly and their subspaces taken about the fit: a
+    # sampled subspace of three directions cannot hold a ringing of any frequency or a buffer of
+    # any law, a local one can
+    refined = {}
+    gain = {e: point_gain(caps, e) for e in singles}
+    lead = sorted(singles, key=lambda e: -gain[e])[:REFINE_TOP]
+    lead += [e for e in singles[:1] if e not in lead]
+    for e in lead:
+        if gain[e] > occam(FAMILY_DIM, mean_rows) or np.sum(lpd[e]) > 0:
+            refined[e] = refine_family(windows, caps, e)
+            lpd[e] = loo_lpd(_units(caps)[0], (e,))
+    units, kind = _units(caps)
+    singles = sorted((e for e in hyps if e != "none"), key=lambda e: -float(np.sum(lpd[e])))
+    for a, b in combinations(singles[:PAIR_TOP], 2):
+        pair = tuple(sorted((a, b)))
+        name = "+".join(pair)
+        hyps[name] = pair
+        lpd[name] = loo_lpd(units, pair)
+    # outside the catalogue: the shared discrepancy, everywhere or in one stretch, alone or beside
+    # the best family; the best of these alternatives, each paying its own Occam factor and
+    # together ln(their number) for the choice
+    best_out, best_val, best_k, n_alt = outside(caps, singles[:1], mean_rows)
+    # each effect hypothesis is scored at its own nuisance profile: the leading one is refitted
+    # exactly (shared effect, every capture's state and τ), the captures linearised again at the
+    # states it found, and it and the discrepancy scored there (a strong effect moves the states
+    # beyond the reach of the reduced fit's tangent, and the discrepancy would otherwise win on
+    # the linearisation error alone)
+    effect_hyps = [k for k in hyps if k != "none"]
+    dims = {k: int(sum(caps[0].cols[n].shape[1] for n in v)) for k, v in hyps.items()}
+    pen = {k: float(np.sum(lpd[k])) - occam(dims[k], mean_rows) for k in effect_hyps}
+    cand = [k for k in sorted(effect_hyps, key=lambda k: -pen[k])[:EXACT_TOP] if pen[k] > 0]
+    for k in list(cand):          # a pair is compared with its own members at their own profiles
+        cand += [e for e in hyps[k] if len(hyps[k]) == 2 and e not in cand and e in hyps]
+    exact = {}
+    cand.sort(key=lambda k: -len(hyps[k]))      # pairs first: their members then start from them too
+    for k in cand:
+        h = exact_fit(windows, hyps[k], refined)
+        if len(hyps[k]) == 1:
+            # a pair must not win on convergence alone: the member is also refitted alone from the
+            # pair's states and parameters, and the better fit kept
+            from .hypotheses import fit_hypothesis, refine_exact
+
+            e = hyps[k][0]
+            for pk, ph in list(exact.items()):
+                if e in hyps[pk] and len(hyps[pk]) == 2:
+                    z = np.concatenate([[ph.phi[e][0]], ph.phi[e][1]])
+                    alt = refine_exact(windows, fit_hypothesis(windows, (e,), [z], caps=ph.captures,
+                                                               refine_nfev=REFINE_NFEV))
+                    if alt.chi2 < h.chi2:
+                        h = alt
+        exact[k] = h
+        w2 = Windows(windows.operation, windows.breaker, h.captures)
+        caps2 = capture_bases(w2, (), filters=[(c.f, c.ar) for c in caps])
+        for e in hyps[k]:
+            local_subspace(w2, caps2, e, *h.phi[e])
+        drop_empty_discrepancy(caps2)
+        u2, _ = _units(caps2)
+        # densities relative to ``none`` at the reduced fit's profile (the same filter, rows)
+        shift = np.array([-0.5 * (float(r2 @ r2) - float(r1 @ r1)) for (r2, _), (r1, _) in zip(u2, units)])
+        v2 = loo_lpd(u2, hyps[k]) + shift
+        if np.sum(v2) > np.sum(lpd[k]):
+            lpd[k] = v2
+        o2 = outside(caps2, [hyps[k]], mean_rows, shift)
+        if o2[1] > best_val:
+            best_out, best_val, best_k = o2[:3]
+        n_alt += o2[3]
+    hyps["outside_catalogue"] = ("__disc__",)
+    lpd["outside_catalogue"] = best_out
+    F = max(len(singles), 1)
+    prior = {k: (1.0 / F if len(v) == 2 and k != "outside_catalogue" else 1.0) for k, v in hyps.items()}
+    z = sum(prior.values())
+    prior = {k: v / z for k, v in prior.items()}
+    dims["outside_catalogue"] = best_k
+    # the Occam factor of each hypothesis' shared coefficients enters as a prior weight
+    logp = {k: np.log(prior[k]) - occam(dims[k], mean_rows) for k in hyps}
+    logp["outside_catalogue"] -= np.log(n_alt)
+    m = max(logp.values())
+    prior_eff = {k: float(np.exp(v - m)) for k, v in logp.items()}
+    weights = pseudo_bma_plus(lpd, prior_eff)
+    shrink = {}
+    for k, v in hyps.items():
+        if v and len(caps) and weights[k] >= 0.01:
+            shrink[k] = linear_shrink(caps, v)
+    return Scores(list(hyps), dims,
+                  lpd, {k: float(np.sum(v)) for k, v in lpd.items()}, prior, weights, kind, len(units),
+                  [c.ar for c in caps], shrink, refined, exact)
