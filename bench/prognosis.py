@@ -122,7 +122,8 @@ def one(scenario: str, seed: list[int], settings: DriftSettings) -> list[dict]:
         cost = time.perf_counter() - t0
         row = {"scenario": scenario, "parameter": parameter, "at": j, "fraction": None,
                "status": prog.status, "alarm": state.level, "basis": prog.basis,
-               "cost_ms": cost * 1e3, **draw}
+               "cost_ms": cost * 1e3, "seasonal": prog.seasonal,
+               "low_frequency": prog.low_frequency_sd is not None, **draw}
         q = prog.operations_to_limit
         row["pred"] = [None, None, None] if q is None else [q.p05, q.median, q.p95]
         if scenario != "healthy" and prog.limit is not None:
@@ -133,7 +134,9 @@ def one(scenario: str, seed: list[int], settings: DriftSettings) -> list[dict]:
             if seasonal:
                 level = level * (1.0 + TEMP_SLOPE[parameter] * (t_ref - T_REF))
             c = crossing(level, prog.limit, prog.direction)
-            row.update(fraction=FRACTIONS[k], truth=None if c is None else c - j)
+            # Crossed at or before now: the right answer is 0 operations ("crossed: service is
+            # due"), which is what the prognosis reports for a trend already past its limit.
+            row.update(fraction=FRACTIONS[k], truth=None if c is None else max(c - j, 0))
         rows.append(row)
         k += 1
         if k == len(stops):
@@ -157,8 +160,8 @@ def summarise(rows: list[dict]) -> dict:
         if not sel:
             return None
         half = [r for r in sel if r["fraction"] == 0.5]
-        errs = [abs((r["pred"][1] if r["pred"][1] is not None else math.inf) - r["truth"]) / r["truth"]
-                for r in half if r["truth"]]
+        errs = [abs((r["pred"][1] if r["pred"][1] is not None else math.inf) - r["truth"]) / max(r["truth"], 1)
+                for r in half if r["truth"] is not None]
         below = sum(1 for r in sel if r["truth"] is not None and r["pred"][0] is not None and r["truth"] < r["pred"][0])
         return {"predictions": len(sel), "coverage_90": round(float(np.mean([covered(r) for r in sel])), 4),
                 "coverage_90_at_half": round(float(np.mean([covered(r) for r in half])), 4) if half else None,

@@ -65,7 +65,7 @@ def breaker_prognoses(session, *, breaker: BreakerRow, settings, horizon_years: 
 def soonest_key(p) -> tuple:
     """Sort key: a crossing expected soonest first, then no crossing, then no trend."""
     q = p.operations_to_limit
-    return (0, q.median) if q is not None else ((1, 0.0) if p.status == "ok" else (2, 0.0))
+    return (0, q.median) if q is not None and q.median is not None else ((1, 0.0) if p.status == "ok" else (2, 0.0))
 
 
 def as_json(p) -> dict:
@@ -90,7 +90,7 @@ def store_prognoses(session, *, breaker_id: int, settings) -> list:
     for p in progs:
         row = stored.pop(p.parameter, None) or PrognosisRow(breaker_id=breaker_id, parameter=p.parameter)
         q = p.operations_to_limit
-        row.median_operations = float(q.median) if q is not None else None
+        row.median_operations = float(q.median) if q is not None and q.median is not None else None
         row.result, row.updated_at = as_json(p), now
         session.add(row)
     for row in stored.values():  # a limit that was removed from the breaker file
