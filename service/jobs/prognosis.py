@@ -9,6 +9,7 @@ from datetime import datetime
 
 from sqlalchemy import select
 
+from service.prognosis import words
 from service.storage import crud
 from service.storage.crud_alarms import operation_temperatures
 from service.storage.models import BreakerRow, DriftStateRow, PrognosisRow, utcnow
@@ -78,7 +79,9 @@ def as_json(p) -> dict:
         if isinstance(v, list):
             return [conv(x) for x in v]
         return v
-    return conv(asdict(p))
+    out = conv(asdict(p))
+    out["summary"], out["fleet"] = words.summary(out), words.fleet_text(out)
+    return out
 
 
 def store_prognoses(session, *, breaker_id: int, settings) -> list:
@@ -107,4 +110,16 @@ def soonest_by_breaker(session) -> dict[int, tuple[str, float | None, datetime]]
         have = out.get(r.breaker_id)
         if have is None or (r.median_operations is not None and (have[1] is None or r.median_operations < have[1])):
             out[r.breaker_id] = (r.parameter, r.median_operations, r.updated_at)
+    return out
+
+
+def soonest_texts(session) -> dict[int, str]:
+    """breaker id -> the fleet column's words for the soonest stored prognosis (the one
+    ``soonest_by_breaker`` picks)."""
+    soonest = soonest_by_breaker(session)
+    out = {}
+    for r in session.scalars(select(PrognosisRow)):
+        pick = soonest.get(r.breaker_id)
+        if pick is not None and pick[0] == r.parameter and r.result:
+            out[r.breaker_id] = r.result.get("fleet") or words.fleet_text(r.result)
     return out

@@ -181,7 +181,7 @@ def prognose(state: DriftState, history: Sequence[FitObservation], limit: Parame
     common = dict(baseline=model.centre, current=level_now, basis=basis, basis_operations=fit.basis_operations,
                   rate_per_day=rate, horizon_operations=horizon, horizon_years=horizon_years if rate else None,
                   reference_temperature=model.t_mean, limits=all_limits,
-                  paths={f"power {c.shape:g}": round(float(w), 4) for c, w in zip(fit.candidates, fit.weights)},
+                  paths={f"{c.variant} power {c.shape:g}": round(float(w), 4) for c, w in zip(fit.candidates, fit.weights)},
                   seasonal=fit.seasonal, low_frequency_sd=fit.low_frequency_sd)
     ops = [mix.crossing_quantile(bound, direction, p, n_now=n_now, horizon=horizon) for p in QUANTILES]
     p_within = float(mix.crossing_probability(bound, direction, np.array([n_now + horizon]))[0])
