@@ -129,7 +129,11 @@ def one(scenario: str, seed: list[int], settings: DriftSettings) -> list[dict]:
         if scenario != "healthy" and prog.limit is not None:
             # The truth: the noise-free level, at the temperature the values are compensated to.
             m = state.model
-            t_ref = m.t_mean if m.compensated else (float(np.mean(temp[:settings.baseline_n])) if seasonal else T_REF)
+            # Without compensation the baseline (and so a relative limit) is the mean of the
+            # detector's window, which keeps learning past its first baseline_n fits: the level
+            # at the window's mean temperature (the parameter is linear in temperature).
+            window_ops = [int(w_[0]) - 1 for w_ in state.window]
+            t_ref = m.t_mean if m.compensated else (float(np.mean(temp[window_ops])) if seasonal else T_REF)
             level = NOMINAL[parameter] * true_factor
             if seasonal:
                 level = level * (1.0 + TEMP_SLOPE[parameter] * (t_ref - T_REF))

@@ -251,8 +251,8 @@ def fit_paths(state: DriftState, history: list, start: int) -> PathsFit:
     seasonal = not model.compensated and span_days >= DAYS_PER_YEAR
     lo = 0 if seasonal else max(0, start - PRE_FITS)
     n, y, w, dt = n_all[lo:], y_all[lo:], w_all[lo:], dt_all[lo:]
-    harmonics = []
-    if seasonal:
+    harmonics, harmonic_precision = [], 0.0
+    if not model.compensated:
         angle = 2.0 * np.pi * _day_of_year([o.time for o in history]) / DAYS_PER_YEAR
         ids = {w_[0] for w_ in state.window}
         ref = np.array([o.operation_id in ids for o in history]) if ids else np.arange(len(history)) < model.n
@@ -265,46 +265,49 @@ def fit_paths(state: DriftState, history: list, start: int) -> PathsFit:
     in_basis = n >= start
     variants = ("free", "anchored") if (~in_basis).any() else ("free",)
 
-    def design(k, variant):
-        cols = [np.ones_like(n), shape_column(n, d0, scale_ops, k) * in_basis, *harmonics]
+    def design(k, variant, with_harmonics=True):
+        cols = [np.ones_like(n), shape_column(n, d0, scale_ops, k) * in_basis]
+        prec = [0.0, 0.0]
+        if with_harmonics and harmonics and (seasonal or harmonic_precision > 0):
+            cols += harmonics
+            prec += [0.0 if seasonal else harmonic_precision] * 2
         if variant == "free" and (~in_basis).any():
             cols.append((~in_basis).astype(float))
-        prec = [0.0] * len(cols)
+            prec.append(0.0)
         if common_var > 0:
             cols.append(dt)
             prec.append(model.sd ** 2 / common_var)
         return np.stack(cols, axis=1), np.array(prec)
 
-    def fit(k, variant, sel):
-        x, prec = design(k, variant)
+    def fit(k, variant, sel, with_harmonics=True):
+        x, prec = design(k, variant, with_harmonics)
         return fit_path(x[sel], y[sel], w[sel], prec, prior_sd=model.sd, prior_dof=model.dof, shape=k,
                         scale_ops=scale_ops, d0=d0)
 
     keep = np.ones(len(n), dtype=bool)
-    first = fit(1.0, "free", keep)
-    resid = y - design(1.0, "free")[0] @ first.beta
+    first = fit(1.0, "free", keep, seasonal)
+    resid = y - design(1.0, "free", seasonal)[0] @ first.beta
     # Gross fit errors (about 1 % of fits, 5-30 % off) would pull a least-squares line: drop the
     # fits beyond REJECT_Z posterior sds and draw it again.
     keep = np.abs(resid) * np.sqrt(w) <= REJECT_Z * first.sd
     if (in_basis & keep).sum() < MIN_BASIS:
         keep = np.ones(len(n), dtype=bool)
-    inflate, extra_var, lf_sd = 1.0, 0.0, None
-    if not model.compensated and not seasonal:
-        lf = low_frequency(resid[keep])
-        if lf is not None:
-            # The slow component makes neighbouring residuals alike: the coefficients are known
-            # as if from fewer fits, by the ratio of the errors' long-run variance to their
-            # variance (an AR(1) component's long-run variance is v (1 + phi) / (1 - phi)).
-            var_s, phi, var_all = lf
-            white = max(var_all - var_s, 0.0)
-            inflate = (white + var_s * (1.0 + phi) / (1.0 - phi)) / var_all
-            extra_var, lf_sd = var_s, math.sqrt(var_s)
+    lf_sd = None
+    if not model.compensated and not seasonal and low_frequency(resid[keep]) is not None:
+        # Less than a year without temperature, and the residual's autocorrelation shows a slow
+        # component: the annual cycle cannot be fitted, but its size can be bounded. Each
+        # harmonic's coefficient gets a N(0, v) prior (a cycle of amplitude A has variance
+        # A^2 / 2 = v), v by restricted maximum likelihood (Patterson & Thompson 1971), and the
+        # level is marginalised over the part of the cycle the history cannot pin down.
+        x, _ = design(1.0, "free", False)
+        v = cycle_variance(x[keep], np.stack(harmonics, axis=1)[keep], y[keep], w[keep], model.sd ** 2)
+        harmonic_precision, lf_sd = model.sd ** 2 / v, math.sqrt(v)
     cands, lps = [], []
     first_pred = int(np.flatnonzero(in_basis[keep])[0]) + MIN_BASIS
     for variant in variants:
         for k in SHAPES:
             c = fit(k, variant, keep)
-            cands.append(replace(c, cov=c.cov * inflate, extra_var=extra_var, variant=variant))
+            cands.append(replace(c, variant=variant))
             x, prec = design(k, variant)
             prec = np.where(prec > 0, prec, FLAT_PRECISION)
             lps.append(lfo_log_density(np.ascontiguousarray(x[keep]), y[keep], w[keep], prec, model.sd ** 2,
@@ -330,6 +333,31 @@ def low_frequency(resid: np.ndarray) -> tuple[float, float, float] | None:
         return None
     phi = min(max(g2 / g1, g1 / g0), 0.99) if g2 > 0 else g1 / g0
     return min(g1 / phi, g0), phi, g0
+
+
+def cycle_variance(x: np.ndarray, h: np.ndarray, y: np.ndarray, w: np.ndarray, s2: float) -> float:
+    """The REML estimate of v in y = X b + H c + e, c ~ N(0, v I), e ~ N(0, s2 / w), b flat
+    [unit^2], on a log grid from (0.1 s)^2 to (30 s)^2: -2 log L_R(v) = S(v) + log|A(v)| +
+    k log v, with A(v) = [X H]' W [X H] / s2 + diag(0, I / v) and S(v) the penalised weighted
+    sum of squares at its minimum."""
+    z = np.hstack([x, h])
+    zw = z.T * (w / s2)
+    a0, r0 = zw @ z, zw @ y
+    kx, kh = x.shape[1], h.shape[1]
+    best, best_v = math.inf, s2
+    for v in s2 * np.geomspace(0.01, 900.0, 25):
+        a = a0.copy()
+        a[kx:, kx:] += np.eye(kh) / v
+        try:
+            beta = np.linalg.solve(a, r0)
+        except np.linalg.LinAlgError:
+            continue
+        r = y - z @ beta
+        pen = float((w * r * r).sum() / s2 + (beta[kx:] ** 2).sum() / v)
+        val = pen + float(np.linalg.slogdet(a)[1]) + kh * math.log(v)
+        if val < best:
+            best, best_v = val, float(v)
+    return best_v
 
 
 class Mixture:
