@@ -115,15 +115,22 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--breakers", type=int, default=1000, help="in-control breakers")
     ap.add_argument("--ops", type=int, default=1020, help="operations per in-control breaker")
-    ap.add_argument("--seasonal-breakers", type=int, default=500)
+    ap.add_argument("--seasonal-breakers", type=int, default=1000, help="10^6 operations with 1020 each")
     ap.add_argument("--uncompensated-breakers", type=int, default=100)
     ap.add_argument("--drift-histories", type=int, default=1000, help="per drift case, onset at op 30")
     ap.add_argument("--frozen-drift-histories", type=int, default=500, help="per drift case, onset at op 300")
     ap.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1))
     ap.add_argument("--seed", type=int, default=2026)
     ap.add_argument("--out", type=Path, default=RESULTS)
+    ap.add_argument("--quick", action="store_true",
+                    help="development size: 50 in-control, 200 seasonal, 20 uncompensated breakers, 100/50 drifts")
+    ap.add_argument("--common-mode-z", type=float, default=None,
+                    help="override DriftSettings.common_mode_z (0: the slope's error scored as noise)")
     a = ap.parse_args(argv)
-    settings = DriftSettings()
+    if a.quick:
+        a.breakers, a.seasonal_breakers, a.uncompensated_breakers = 50, 200, 20
+        a.drift_histories, a.frozen_drift_histories = 100, 50
+    settings = DriftSettings() if a.common_mode_z is None else DriftSettings(common_mode_z=a.common_mode_z)
     sd = settings.to_dict()
     t_start = time.perf_counter()
 
@@ -154,6 +161,13 @@ def main(argv=None) -> int:
             add(f"{name}@{start}", p, a.drift_histories if start == 30 else a.frozen_drift_histories,
                 {"n_ops": start + length, "drift": drift, "rate": rate, "start": start}, case)
 
+    # The same 5 % steps on breakers with the seasonal temperature given (compensated), onset
+    # at 300: the common-mode allowance must not slow their detection much.
+    for p, rate in (("DO", -0.05), ("BO", -0.05), ("BO", +0.05)):
+        case += 1
+        add("step5_seasonal@300", p, a.frozen_drift_histories,
+            {"n_ops": 330, "drift": "step", "rate": rate, "start": 300, "seasonal": True,
+             "give_temperature": True}, case)
     results: dict = {}
     with ProcessPoolExecutor(max_workers=a.workers) as pool:
         for kind, parameter, out in pool.map(_job, jobs):
@@ -206,6 +220,11 @@ def main(argv=None) -> int:
         out[f"step_5pct_not_after_onset{sfx}"] = int(ms)
         dw = delays(f"ramp1@{start}", ["DO", "BO"], start, level=3)[0]
         out[f"ramp_1pct_warning_delay_median_ops{sfx}"] = float(np.median(dw))
+    ds, ms = delays("step5_seasonal@300", ["DO", "BO"], 300)
+    out.update({"step_5pct_seasonal_compensated_delay_median_ops": float(np.median(ds)),
+                "step_5pct_seasonal_compensated_delay_p95_ops": float(np.percentile(ds, 95)),
+                "step_5pct_seasonal_compensated_within_3_ops_fraction": round(float(np.mean(ds <= 3)), 4),
+                "step_5pct_seasonal_compensated_not_after_onset": int(ms)})
     out.update({"seasonal_operations": int(se_ops),
                 "seasonal_false_warnings_per_10k_ops": round(se_w, 4),
                 "seasonal_false_alarms_per_10k_ops": round(se_a, 4),
@@ -216,7 +235,8 @@ def main(argv=None) -> int:
                 "frozen_drift_histories_per_case": a.frozen_drift_histories,
                 "thresholds": {"k": settings.k, "h_warning": round(settings.h_warning, 4),
                                "h_alarm": round(settings.h_alarm, 4), "z_cap": settings.z_cap,
-                               "baseline_n": settings.baseline_n, "baseline_max": settings.baseline_max},
+                               "baseline_n": settings.baseline_n, "baseline_max": settings.baseline_max,
+                               "common_mode_z": settings.common_mode_z},
                 "targets": {"false_warnings_per_10k_ops": 0.5, "false_alarms_per_10k_ops": 0.05,
                             "ramp_1pct_delay_median_ops": 6, "ramp_1pct_delay_p95_ops": 10,
                             "ramp_0p1pct_detect_median_drop_pct": 8, "step_5pct_delay_median_ops": 3},

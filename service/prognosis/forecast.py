@@ -411,17 +411,17 @@ class Mixture:
     def level_quantiles(self, n: np.ndarray, ps) -> list[np.ndarray]:
         """The level's p-quantiles after operations ``n`` [unit], by bisection on the mixture cdf."""
         ms = [c.level(n) for c in self.c]
+        mean = np.array([m for m, _ in ms])  # [K, G]
+        scale = np.maximum(np.array([s for _, s in ms]), 1e-300)
+        dof, w = np.array([c.dof for c in self.c])[:, None], self.w[:, None]
         # Student t with >= 3 dof: a 5-95 % quantile lies within 12 scales of some component's mean.
-        lo = np.min([m - 12 * s - 1e-9 for m, s in ms], axis=0)
-        hi = np.max([m + 12 * s + 1e-9 for m, s in ms], axis=0)
+        lo, hi = (mean - 12 * scale).min(axis=0) - 1e-9, (mean + 12 * scale).max(axis=0) + 1e-9
         out = []
         for p in ps:
             a, b = lo.copy(), hi.copy()
             for _ in range(36):  # 24 scales / 2^36: far below a fit's resolution
                 mid = 0.5 * (a + b)
-                cdf = sum(w * special.stdtr(c.dof, (mid - m) / np.maximum(s, 1e-300))
-                          for (m, s), c, w in zip(ms, self.c, self.w))
-                below = cdf < p
+                below = (w * special.stdtr(dof, (mid - mean) / scale)).sum(axis=0) < p
                 a, b = np.where(below, mid, a), np.where(below, b, mid)
             out.append(0.5 * (a + b))
         return out
