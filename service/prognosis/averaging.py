@@ -17,15 +17,16 @@ from __future__ import annotations
 
 import numpy as np
 
-# Bayesian-bootstrap draws: the weights' Monte Carlo error is below 1e-2 at 1 000.
-DRAWS = 1000
+# Bayesian-bootstrap draws: a weight is a mean of values in [0, 1] over the draws, so its Monte
+# Carlo error is below 0.5 / sqrt(400) = 0.025, well inside what the fits can tell apart.
+DRAWS = 400
 SEED = 2018
 
 
 def pseudo_bma_plus_weights(log_density: np.ndarray, *, draws: int = DRAWS, seed: int = SEED) -> np.ndarray:
     """Pseudo-BMA+ weights [K] from log predictive densities [K, T] (finite columns only):
     exp(elpd_k) normalised, with elpd's uncertainty carried by Dirichlet(1) weights over the
-    columns, averaged over the draws. Seeded: the same history gives the same weights. With no
+    columns (the Bayesian bootstrap), averaged over the draws. Seeded: the same history gives the same weights. With no
     usable column the weights are equal."""
     lp = np.asarray(log_density, dtype=float)
     k = lp.shape[0]
@@ -33,7 +34,9 @@ def pseudo_bma_plus_weights(log_density: np.ndarray, *, draws: int = DRAWS, seed
     t = lp.shape[1]
     if t == 0 or k == 1:
         return np.full(k, 1.0 / k)
-    alpha = np.random.default_rng(seed).dirichlet(np.ones(t), size=draws)  # [draws, T]
+    # Dirichlet(1, ..., 1) draws as normalised unit exponentials (the same law, cheaper)
+    alpha = np.random.default_rng(seed).standard_exponential((draws, t))
+    alpha /= alpha.sum(axis=1, keepdims=True)  # [draws, T]
     elpd = t * alpha @ lp.T  # [draws, K]
     elpd -= elpd.max(axis=1, keepdims=True)
     w = np.exp(elpd)
