@@ -431,8 +431,12 @@ def fan(mix: Mixture, fit: PathsFit, n_now: float, ops: list[float], horizon: fl
     """The projected level's 5/50/95 % band from the basis's start to past the 95 % crossing
     (or the horizon), operation counts from the basis's first fit [operations]."""
     n = fit.n
-    ahead = ops[2] if math.isfinite(ops[2]) else horizon
-    ahead = min(max(ahead * 1.1, 0.25 * (n_now - n[0]) + 1.0), horizon)
+    span = n_now - n[0] + 1.0
+    # Past the 95 % crossing; without one (no trend, or beyond the horizon), as far ahead as the
+    # basis is long (or to the earliest crossing): further out the band only shows the
+    # curvature's uncertainty, not the data.
+    ahead = ops[2] if math.isfinite(ops[2]) else (max(ops[0], span) if math.isfinite(ops[0]) else span)
+    ahead = min(max(ahead * 1.1, 0.25 * span), horizon)
     grid = np.linspace(n[0], n_now + ahead, FAN_POINTS)
     p05, median, p95 = mix.level_quantiles(grid, QUANTILES)
     r = lambda a: [round(float(v), 6) for v in a]  # noqa: E731
