@@ -17,7 +17,12 @@ worker computes it. Scenarios (onset after 60-250 healthy operations):
 - healthy: no drift, 300-1000 operations, seasonal temperature given
 
 For each degrading history the prognosis is made when the true level is halfway (and three
-quarters of the way) from the onset to the limit. It reports the coverage of the 5-95 % interval
+quarters of the way) from the onset to the limit. The truth is the first operation whose
+noise-free level, at the temperature the limit refers to, is past the limit the prognosis used:
+the detector window's mean temperature (compensated, or not: an uncompensated window's mean is
+the level at its fits' mean temperature, and the window keeps learning past baseline_n). A
+truth at or before now is 0 operations, the "crossed: service is due" answer. A "no trend"
+prognosis has no median and no 95 % quantile: its interval is [p05, beyond the horizon). It reports the coverage of the 5-95 % interval
 of operations-to-limit (target 0.88-0.92), the median relative error of the median at halfway
 (target <= 20 %), and for healthy breakers the share predicted to cross within 10 years
 (target <= 1 %). Writes bench/results/prognosis.json.
