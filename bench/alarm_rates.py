@@ -126,6 +126,10 @@ def main(argv=None) -> int:
                     help="development size: 50 in-control, 200 seasonal, 20 uncompensated breakers, 100/50 drifts")
     ap.add_argument("--common-mode-z", type=float, default=None,
                     help="override DriftSettings.common_mode_z (0: the slope's error scored as noise)")
+    ap.add_argument("--temperature-only", action="store_true",
+                    help="only the cases with a temperature given (seasonal in control and the seasonal 5 %% "
+                         "steps): the common-mode allowance is 0 without a temperature, so the other "
+                         "figures are those of the last full run by construction")
     a = ap.parse_args(argv)
     if a.quick:
         a.breakers, a.seasonal_breakers, a.uncompensated_breakers = 50, 200, 20
@@ -137,6 +141,8 @@ def main(argv=None) -> int:
     jobs = []
 
     def add(kind, parameter, n, kw, case):
+        if a.temperature_only and not kw.get("give_temperature"):
+            return  # (the case numbers, and so every seed, stay those of the full run)
         seeds = [[a.seed, case, b] for b in range(n)]
         for ch in _chunks(seeds, 25):
             jobs.append((kind, parameter, ch, kw, sd))
@@ -196,41 +202,44 @@ def main(argv=None) -> int:
                     d.append(op - start)
         return np.array(d), missed
 
-    ic_ops, ic_w, ic_a = rates("control")
     se_ops, se_w, se_a = rates("seasonal")
-    su_ops, su_w, su_a = rates("seasonal_uncompensated")
-    out = {"in_control_operations": int(ic_ops), "in_control_breakers": a.breakers,
-           "false_warnings_per_10k_ops": round(ic_w, 4), "false_alarms_per_10k_ops": round(ic_a, 4)}
-    for start in (30, 300):
-        sfx = "" if start == 30 else "_frozen_baseline"
-        d, missed = delays(f"ramp1@{start}", ["DO", "BO"], start)
-        out[f"ramp_1pct_delay_median_ops{sfx}"] = float(np.median(d))
-        out[f"ramp_1pct_delay_p95_ops{sfx}"] = float(np.percentile(d, 95))
-        out[f"ramp_1pct_delay_max_ops{sfx}"] = int(d.max())
-        out[f"ramp_1pct_not_after_onset{sfx}"] = int(missed)
-        dl, ml = delays(f"leak@{start}", ["DO"], start)
-        drop = dl * 0.1  # % fallen when the alarm came
-        out[f"ramp_0p1pct_detect_median_drop_pct{sfx}"] = float(np.median(drop)) if drop.size else None
-        out[f"ramp_0p1pct_detect_p95_drop_pct{sfx}"] = float(np.percentile(drop, 95)) if drop.size else None
-        out[f"ramp_0p1pct_missed_or_early{sfx}"] = int(ml)
-        ds, ms = delays(f"step5@{start}", ["DO", "BO"], start)
-        out[f"step_5pct_delay_median_ops{sfx}"] = float(np.median(ds))
-        out[f"step_5pct_delay_p95_ops{sfx}"] = float(np.percentile(ds, 95))
-        out[f"step_5pct_within_3_ops_fraction{sfx}"] = round(float(np.mean(ds <= 3)), 4)
-        out[f"step_5pct_not_after_onset{sfx}"] = int(ms)
-        dw = delays(f"ramp1@{start}", ["DO", "BO"], start, level=3)[0]
-        out[f"ramp_1pct_warning_delay_median_ops{sfx}"] = float(np.median(dw))
+    out = {"temperature_only": a.temperature_only}
+    if not a.temperature_only:
+        ic_ops, ic_w, ic_a = rates("control")
+        out.update({"in_control_operations": int(ic_ops), "in_control_breakers": a.breakers,
+               "false_warnings_per_10k_ops": round(ic_w, 4), "false_alarms_per_10k_ops": round(ic_a, 4)})
+        for start in (30, 300):
+            sfx = "" if start == 30 else "_frozen_baseline"
+            d, missed = delays(f"ramp1@{start}", ["DO", "BO"], start)
+            out[f"ramp_1pct_delay_median_ops{sfx}"] = float(np.median(d))
+            out[f"ramp_1pct_delay_p95_ops{sfx}"] = float(np.percentile(d, 95))
+            out[f"ramp_1pct_delay_max_ops{sfx}"] = int(d.max())
+            out[f"ramp_1pct_not_after_onset{sfx}"] = int(missed)
+            dl, ml = delays(f"leak@{start}", ["DO"], start)
+            drop = dl * 0.1  # % fallen when the alarm came
+            out[f"ramp_0p1pct_detect_median_drop_pct{sfx}"] = float(np.median(drop)) if drop.size else None
+            out[f"ramp_0p1pct_detect_p95_drop_pct{sfx}"] = float(np.percentile(drop, 95)) if drop.size else None
+            out[f"ramp_0p1pct_missed_or_early{sfx}"] = int(ml)
+            ds, ms = delays(f"step5@{start}", ["DO", "BO"], start)
+            out[f"step_5pct_delay_median_ops{sfx}"] = float(np.median(ds))
+            out[f"step_5pct_delay_p95_ops{sfx}"] = float(np.percentile(ds, 95))
+            out[f"step_5pct_within_3_ops_fraction{sfx}"] = round(float(np.mean(ds <= 3)), 4)
+            out[f"step_5pct_not_after_onset{sfx}"] = int(ms)
+            dw = delays(f"ramp1@{start}", ["DO", "BO"], start, level=3)[0]
+            out[f"ramp_1pct_warning_delay_median_ops{sfx}"] = float(np.median(dw))
     ds, ms = delays("step5_seasonal@300", ["DO", "BO"], 300)
     out.update({"step_5pct_seasonal_compensated_delay_median_ops": float(np.median(ds)),
                 "step_5pct_seasonal_compensated_delay_p95_ops": float(np.percentile(ds, 95)),
                 "step_5pct_seasonal_compensated_within_3_ops_fraction": round(float(np.mean(ds <= 3)), 4),
                 "step_5pct_seasonal_compensated_not_after_onset": int(ms)})
+    if not a.temperature_only:
+        su_ops, su_w, su_a = rates("seasonal_uncompensated")
+        out.update({"seasonal_uncompensated_operations": int(su_ops),
+                    "seasonal_false_warnings_per_10k_ops_uncompensated": round(su_w, 4),
+                    "seasonal_false_alarms_per_10k_ops_uncompensated": round(su_a, 4)})
     out.update({"seasonal_operations": int(se_ops),
                 "seasonal_false_warnings_per_10k_ops": round(se_w, 4),
                 "seasonal_false_alarms_per_10k_ops": round(se_a, 4),
-                "seasonal_uncompensated_operations": int(su_ops),
-                "seasonal_false_warnings_per_10k_ops_uncompensated": round(su_w, 4),
-                "seasonal_false_alarms_per_10k_ops_uncompensated": round(su_a, 4),
                 "drift_histories_per_case": a.drift_histories,
                 "frozen_drift_histories_per_case": a.frozen_drift_histories,
                 "thresholds": {"k": settings.k, "h_warning": round(settings.h_warning, 4),
