@@ -18,6 +18,7 @@ import numpy as np
 from drivers.capture import AuxChannel, Capture, CaptureError
 from drivers.analyser import TRAVEL, looks_like_analyser, parse_analyser
 from drivers.comtrade import Record, decode_text, read_cff_bytes, read_record, read_record_bytes
+from drivers.masked import filled
 
 # Unit spellings accepted per quantity, with the factor to our unit.
 TRAVEL_UNITS = {"rad": 1.0, "radian": 1.0, "radians": 1.0, "deg": np.pi / 180, "degree": np.pi / 180,
@@ -33,6 +34,7 @@ MAX_SAMPLES = 50_000_000
 # hvcb's own COMTRADE (service/acquisition/comtrade_writer.py) names a recorded channel kept
 # beside the travel "aux <name>": never a breaker's travel or vibration channel name.
 AUX_PREFIX = "aux "
+OVER_RANGE_FLAG = "over-range samples"  # an operation's flag: its channels' masked sample counts
 
 
 def read_capture(path: str | Path, *, travel_channel: str = "travel", vibration_channel: str = "vibration",
@@ -106,17 +108,28 @@ def analyser_capture(text: str, *, source: str, travel_channel: str = "travel", 
     record = parse_analyser(text, source=source, rate=rate)
     travels = [c for c in record.channels if c.kind == TRAVEL]
     wanted = str(travel_channel).strip()
+    warnings = list(record.warnings)
     if wanted.lower() == "travel":
         wired = [c for c in travels if c.wired]
         if not wired:
-            raise CaptureError(f"{source}: no contact-travel channel is wired (all read a constant)")
-        chosen = wired[0]
+            dead = [c.name for c in travels if c.over_range_throughout]
+            raise CaptureError(f"{source}: no contact-travel channel is wired (all read a constant"
+                               + (f"; {', '.join(dead)} over-range throughout" if dead else "") + ")")
+        # A phase with over-range samples is fitted only when every wired phase has some.
+        clean = [c for c in wired if c.mask is None]
+        chosen = clean[0] if clean else wired[0]
+        if chosen is not wired[0]:
+            warnings.append(f"travel {wired[0].name} has over-range samples; {chosen.name}, whose samples "
+                            "are all valid, is fitted instead")
     else:
         matches = [c for c in travels if wanted.lower() in (c.name.lower(), c.column.lower())]
         if not matches:
             raise CaptureError(f"{source}: no travel channel named '{wanted}' (travel channels: "
                                f"{', '.join(c.name for c in travels)}); set [channels] travel in the breaker file")
         chosen = matches[0]
+        if chosen.over_range_throughout:
+            raise CaptureError(f"{source}: travel channel {chosen.name} is over-range throughout (every sample "
+                               "reads ∞ or NaN): it holds no reading; fit another phase with [channels] travel")
         if not chosen.wired:
             raise CaptureError(f"{source}: travel channel {chosen.name} is not wired (it reads a constant)")
     if to_rad is None:
@@ -124,13 +137,15 @@ def analyser_capture(text: str, *, source: str, travel_channel: str = "travel", 
                            "section must map mm to the model's coordinate (config/breakers/generic-analyser.toml "
                            "serves a breaker of unknown design; see docs/breaker-file.md)")
     stated = record.stated_stroke_mm(chosen.name)
+    # Over-range samples are carried filled (straight line between valid neighbours) and listed
+    # in meta["masked"]: COMTRADE and the filters hold no NaN; the fit refuses a window they touch.
     try:
-        travel, info = to_rad(chosen.data, chosen.unit, stated)
+        travel, info = to_rad(_filled(chosen), chosen.unit, stated)
     except ValueError as exc:
         raise CaptureError(f"{source}: {exc}") from None
-    aux = tuple(AuxChannel(c.name, c.kind, c.unit, c.data) for c in record.channels if c.wired)
+    aux = tuple(AuxChannel(c.name, c.kind, c.unit, _filled(c)) for c in record.channels if c.wired)
+    masked = [s for c in record.channels if c.wired for s in c.masked_spans(record.sample_rate)]
     others = [c.name for c in travels if c.wired and c is not chosen]
-    warnings = list(record.warnings)
     if others:
         warnings.append(f"travel {chosen.name} is fitted; also wired: {', '.join(others)} "
                         "(choose one with [channels] travel)")
@@ -139,12 +154,28 @@ def analyser_capture(text: str, *, source: str, travel_channel: str = "travel", 
             "analyser": {"profile": record.profile, "rate_source": record.rate_source, "bare": record.bare,
                          "metadata": record.metadata, "results": record.results,
                          "unparsed": [dict(u) for u in record.unparsed]}}
+    if masked:
+        meta["masked"] = masked
     # the record's quirks stay visible on every operation stored from it (the page's flags)
     flags = (f"analyser header: {len(record.unparsed)} field(s) kept as text",) if record.unparsed else ()
+    if masked:
+        flags += (over_range_flag(masked),)
     cap = Capture(travel=np.asarray(travel, dtype=float), sample_rate=float(record.sample_rate), vibration=None,
                   source=source, meta=meta, aux=aux, flags=flags)
     check_finite(cap)
     return cap
+
+
+def _filled(channel) -> np.ndarray:
+    return channel.data if channel.mask is None else filled(channel.data, channel.mask)
+
+
+def over_range_flag(masked: list) -> str:
+    """The operation's flag for its over-range samples: ``over-range samples: T1 12``."""
+    count: dict = {}
+    for s in masked:
+        count[s["channel"]] = count.get(s["channel"], 0) + int(s["count"])
+    return OVER_RANGE_FLAG + ": " + ", ".join(f"{k} {v}" for k, v in count.items())
 
 
 def read_comtrade(cfg_path: str | Path, *, travel_channel: str = "travel", vibration_channel: str = "vibration",
@@ -236,7 +267,8 @@ def _temperature(record: Record, names, wanted: str, source: str, notes: list) -
     return round(t, 3)
 # What hvcb's own .hdr (service.acquisition.comtrade_writer) keeps of an analyser record that a
 # .cfg cannot say: the coil command (the fit's window start) and the analyser's header.
-_KEPT = ("command_s", "command_source", "motion_s", "analyser", "travel_map", "travel_channel", "travel_unit")
+_KEPT = ("command_s", "command_source", "motion_s", "analyser", "travel_map", "travel_channel", "travel_unit",
+         "masked")
 
 
 def _kept_meta(hdr_text: str | None) -> dict:

@@ -16,7 +16,7 @@ from typing import Annotated
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model, field_validator, model_validator
 
-from .breaker_limits import Limits
+from .breaker_limits import CharacteristicLimits, Limits
 from .breaker_travel import TravelMapError, travel_options
 from .mechanics.breaker import TABLE2_RANGES, Breaker
 from .mechanics.cam_profile import CamProfile, CamProfileError
@@ -155,6 +155,8 @@ class BreakerFileModel(BaseModel):
     acquisition: Acquisition = Field(default_factory=Acquisition)
     ranges: dict[str, tuple[float, float]] = Field(default_factory=dict)
     limits: Limits = Field(default_factory=Limits)  # maintenance limits (service/breaker_limits.py)
+    # accepted ranges of the travel characteristics: the condition report's pass/fail (docs/reports.md)
+    characteristic_limits: CharacteristicLimits = Field(default_factory=CharacteristicLimits)
     effects: EffectStrengths = Field(default_factory=EffectStrengths)
 
     @model_validator(mode="after")

@@ -87,3 +87,57 @@ class Limits(RootModel[dict[str, ParameterLimit]]):
     def __bool__(self) -> bool:
         return bool(self.root)
 
+
+
+# The travel characteristics a breaker analyser reports (service.mechanics.characteristics) and
+# their SI units: the keys a [characteristic_limits] table may name.
+CHARACTERISTIC_UNITS = {"operating_time_s": "s", "average_speed_rad_s": "rad/s", "max_travel_rad": "rad",
+                        "overtravel_rad": "rad", "rebound_rad": "rad", "damping_time_s": "s"}
+
+
+class CharacteristicLimit(BaseModel):
+    """The accepted range of one travel characteristic, as a manufacturer's test sheet gives it.
+
+    min, max : bounds in the characteristic's SI unit (s, rad/s, rad), e.g. operating time
+    ``{ min = 0.009, max = 0.014 }``
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    min: float | None = Field(None, ge=0.0, allow_inf_nan=False)
+    max: float | None = Field(None, gt=0.0, allow_inf_nan=False)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _table(cls, data):
+        if not isinstance(data, dict):
+            raise ValueError(f"must be a table such as {{ min = 0.009, max = 0.014 }}, got {data!r}")
+        return data
+
+    @model_validator(mode="after")
+    def _bounds(self):
+        if self.min is None and self.max is None:
+            raise ValueError("needs a bound: min or max")
+        if self.min is not None and self.max is not None and not self.min < self.max:
+            raise ValueError(f"min {self.min:g} must be below max {self.max:g}")
+        return self
+
+
+def _known_characteristics(v: dict) -> dict:
+    for name in v:
+        if name not in CHARACTERISTIC_UNITS:
+            raise ValueError(f"unknown characteristic {name!r} (known: {', '.join(CHARACTERISTIC_UNITS)})")
+    return v
+
+
+class CharacteristicLimits(BaseModel):
+    """The ``[characteristic_limits]`` table: per operation (``open``, ``close``) the accepted
+    range of each travel characteristic; the condition report reads them as pass or fail."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    open: dict[str, CharacteristicLimit] = Field(default_factory=dict)
+    close: dict[str, CharacteristicLimit] = Field(default_factory=dict)
+
+    @field_validator("open", "close")
+    @classmethod
+    def _known(cls, v):
+        return _known_characteristics(v)

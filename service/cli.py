@@ -27,8 +27,10 @@ COMMANDS = {
     "prune": ("service.storage.commands", "remove raw captures the retention policy no longer keeps"),
     "backup": ("service.storage.commands", "consistent online backup of the database and capture files"),
     "restore": ("service.storage.commands", "restore a backup made by hvcb backup"),
+    "commission": ("service.storage.commands", "record a breaker's commissioning close–open pair"),
     "agent": ("service.agent.commands", "edge agent: acquisition only, forwarding captures to a central hvcb"),
     "refit": ("service.refit.commands", "re-fit stored operations (resumable; old results kept)"),
+    "report": ("service.reports.commands", "a breaker's condition report (PDF)"),
 }
 
 

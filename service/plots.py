@@ -1,8 +1,10 @@
-"""matplotlib, imported only when a figure is drawn (``--plot``, study figures).
+"""matplotlib, imported only when a figure is drawn (``--plot``, study figures, the condition
+report's plots).
 
-matplotlib is the optional ``plots`` extra, not part of the core install: a monitor on a
-substation server never draws a PNG. Without it, asking for a figure is a sentence that says how
-to install it, raised before any long computation starts.
+matplotlib is a core dependency since the condition report (service/reports/), which the API
+serves; the ``plots`` extra still names it for old install commands. In an environment that
+lacks it anyway, asking for a figure is a sentence that says how to install it, raised before
+any long computation starts.
 """
 
 from __future__ import annotations

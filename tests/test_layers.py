@@ -27,7 +27,7 @@ LAYERS: list[tuple[str, ...]] = [
     ("service.estimation", "service.storage", "service.alarms", "service.prognosis", "service.prototypes"),
     ("service.diagnosis", "service.studies"),
     ("service.jobs", "service.workers", "service.refit", "service.agent", "service.iec61850",
-     "service.settings"),
+     "service.settings", "service.reports"),
     ("service.api", "service.web", "service.cli"),
 ]
 LAYER = {pkg: i for i, pkgs in enumerate(LAYERS) for pkg in pkgs}

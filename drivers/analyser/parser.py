@@ -13,10 +13,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from drivers.capture import CaptureError
+from drivers.masked import describe, spans
 
 from .profile import KIND_UNITS, TRAVEL, HeaderValue, Profile, normalise_key
 from .profiles import PROFILES
-from .values import read_date, read_number
+from .values import is_over_range, read_date, read_number
 
 
 @dataclass(frozen=True)
@@ -29,6 +30,17 @@ class Channel:
     column: str
     data: np.ndarray
     wired: bool
+    # Samples the analyser marked over-range (∞, NaN, OL): NaN in ``data``; None when there are none.
+    mask: np.ndarray | None = None
+
+    @property
+    def over_range_throughout(self) -> bool:
+        """Every sample over-range: the channel holds no reading."""
+        return self.mask is not None and bool(self.mask.all())
+
+    def masked_spans(self, sample_rate: float | None) -> list:
+        """Its over-range spans (:func:`drivers.masked.spans`)."""
+        return [] if self.mask is None else spans(self.name, self.mask, sample_rate)
 
 
 @dataclass(frozen=True)
@@ -177,7 +189,8 @@ def parse_analyser(text: str, *, source: str, rate: float | None = None,
     else:
         sample_rate, rate_source = None, None
         warnings.append("no sampling rate stated (bare export): give it with --rate")
-    unwired = [c.name for c in channels if not c.wired]
+    warnings += over_range_warnings(channels, sample_rate)
+    unwired = [c.name for c in channels if not c.wired and not c.over_range_throughout]
     if unwired:
         warnings.append("not wired (constant reading, ignored): " + ", ".join(unwired))
     n = channels[0].data.size
@@ -299,27 +312,48 @@ def _table(lines, h, prof: Profile, source, delim: str = ","):
         try:
             rows.append([float(cells[j]) for j in idx])
         except ValueError:
-            for j, p in zip(idx, picked):
-                try:
-                    float(cells[j])
-                except ValueError:
-                    raise CaptureError(f"{source}, line {i + 1}, column '{p[3]}': '{cells[j].strip()[:20]}' "
-                                       "is not a number") from None
+            rows.append([_sample(cells[j], source, i + 1, p[3]) for j, p in zip(idx, picked)])
         if first_row is None:
             first_row = i
     if len(rows) < 2:
         raise CaptureError(f"{source}: the table (from line {h + 1}) holds {len(rows)} sample rows")
     data = np.asarray(rows, dtype=float)
-    bad = ~np.isfinite(data)
-    if bad.any():
-        r, c = np.argwhere(bad)[0]
-        raise CaptureError(f"{source}: column '{picked[c][3]}' has a NaN or infinite value")
+    bad = ~np.isfinite(data)  # over-range samples (float() reads "inf" and "nan" itself)
     channels = []
     for k, (j, col, n, name) in enumerate(picked):
         x = data[:, k] * col.factor
+        mask = bad[:, k] if bad[:, k].any() else None
+        x[~np.isfinite(x)] = np.nan
+        good = x[np.isfinite(x)]
         channels.append(Channel(name=col.name.format(n=n), kind=col.kind, unit=KIND_UNITS[col.kind],
-                                column=name, data=x, wired=bool(np.ptp(x) > 0)))
+                                column=name, data=x, wired=bool(good.size and np.ptp(good) > 0), mask=mask))
     return channels, skipped
+
+
+def _sample(cell: str, source: str, line_no: int, column: str) -> float:
+    """One sample cell: a number, NaN for an over-range mark, else refused naming line and column."""
+    try:
+        return float(cell)
+    except ValueError:
+        if is_over_range(cell):
+            return float("nan")
+        raise CaptureError(f"{source}, line {line_no}, column '{column}': '{cell.strip()[:20]}' "
+                           "is not a number") from None
+
+
+def over_range_warnings(channels, sample_rate: float | None) -> list:
+    """The record's over-range samples in words, one line per channel."""
+    out = []
+    for c in channels:
+        if c.over_range_throughout:
+            out.append(f"{c.name} ({c.column}): every sample is over-range (∞ or NaN): the channel holds "
+                       "no reading and is not used")
+        elif c.mask is not None:
+            sp = c.masked_spans(sample_rate)
+            out.append(f"{c.name} ({c.column}): {int(c.mask.sum())} over-range sample(s) masked in "
+                       f"{len(sp)} span(s): " + "; ".join(describe(s).split(", ", 1)[1] for s in sp[:3])
+                       + (" ..." if len(sp) > 3 else ""))
+    return out
 
 
 __all__ = ["AnalyserRecord", "Channel", "HeaderValue", "find_profile", "looks_like_analyser",

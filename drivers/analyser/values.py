@@ -22,6 +22,18 @@ INFINITE = {"∞", "+∞", "-∞", "inf", "+inf", "-inf", "infinity", "+infinity
 NOT_A_NUMBER = {"nan", "-nan", "+nan", "nan(ind)", "-nan(ind)", "1.#qnan", "-1.#qnan", "1.#ind", "-1.#ind",
                 "#n/a", "#num!", "#value!", "#div/0!", "qnan", "snan"}
 
+# What an analyser writes in a sample table for a reading outside its range ("OL" overload, "OVR").
+# Lower case; infinities and NaNs count too. Such a sample is missing, not a refused record.
+OVER_RANGE_WORDS = {"ol", "+ol", "-ol", "o/l", "ovr", "+ovr", "-ovr", "over", "overrange", "over range",
+                    "over-range", "overflow", "underflow", "out of range", "oor"}
+
+
+def is_over_range(text: str) -> bool:
+    """Whether a sample cell is an over-range mark (``∞``, ``-∞``, ``NaN``, ``1.#INF``, ``OL``...)."""
+    low = text.strip().strip('"').strip().lower()
+    return low in INFINITE or low in NOT_A_NUMBER or low in OVER_RANGE_WORDS
+
+
 _NUMBER = re.compile(r"^([+-]?(?:\d+(?:[.,' ]\d+)*|[.,]\d+)(?:[eE][+-]?\d+)?)\s*(.*)$")
 
 # SI prefixes (case matters for m/M; an analyser's upper-case K is kilo).
@@ -160,4 +172,4 @@ def read_date(text: str, *, day_first: bool = True) -> tuple[str | None, str | N
     return (when.isoformat() if timed else when.date().isoformat()), None
 
 
-__all__ = ["EMPTY", "INFINITE", "NOT_A_NUMBER", "read_date", "read_number", "unit_factor"]
+__all__ = ["EMPTY", "INFINITE", "NOT_A_NUMBER", "OVER_RANGE_WORDS", "is_over_range", "read_date", "read_number", "unit_factor"]

@@ -18,6 +18,8 @@ from datetime import timedelta
 import numpy as np
 
 from drivers.capture import Capture
+from drivers.capture_file import OVER_RANGE_FLAG, over_range_flag
+from drivers.masked import cut
 
 from .operation_end import moving_average
 from .trigger import CLOSE, OPEN, DetectedOperation, TriggerSettings
@@ -86,8 +88,12 @@ def detect_from_coils(capture: Capture, settings: TriggerSettings) -> list[Detec
                 "index_in_record": k}
         if cmd is not None:
             meta.update(command_s=(cmd - a) / fs, command_source="coil " + "/".join(names))
+        kept = tuple(f for f in capture.flags if not f.startswith(OVER_RANGE_FLAG))
+        if capture.meta.get("masked") is not None:  # the over-range spans inside this cut only
+            meta["masked"] = cut(capture.meta["masked"], a, b, fs)
+            kept += (over_range_flag(meta["masked"]),) if meta["masked"] else ()
         sub = Capture(travel=T[a:b].copy(), sample_rate=fs, vibration=None, source=capture.source,
-                      flags=tuple(capture.flags), first_sample_index=first + a, travel_limits=capture.travel_limits, meta=meta,
+                      flags=kept, first_sample_index=first + a, travel_limits=capture.travel_limits, meta=meta,
                       start_time=None if capture.start_time is None
                       else capture.start_time + timedelta(seconds=a / fs),
                       aux=tuple(replace(x, data=x.data[a:b].copy()) for x in capture.aux))

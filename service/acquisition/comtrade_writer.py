@@ -151,6 +151,17 @@ def stored_analyser_results(cfg_path) -> dict | None:
     return found if isinstance(found, dict) else None
 
 
+def stored_masked_spans(cfg_path) -> list:
+    """The over-range spans (``drivers.masked``) kept in a stored capture's .hdr; [] if none."""
+    hdr = Path(cfg_path).with_suffix(".hdr")
+    try:
+        meta = json.loads(hdr.read_text()).get("meta") or {}
+    except (OSError, ValueError, AttributeError):
+        return []
+    found = meta.get("masked") if isinstance(meta, dict) else None
+    return [s for s in found if isinstance(s, dict)] if isinstance(found, list) else []
+
+
 def _header(capture: Capture) -> dict:
     """Free-text .hdr content: what the .cfg cannot say (flags, window, stream position, the
     recorded channels' kinds and units)."""

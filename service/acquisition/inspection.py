@@ -87,7 +87,9 @@ def inspect_capture(path: str | Path, *, channels: dict | None = None, encoding:
     report["mapping"] = {k: names.get(str(wanted[k]).strip().lower()) for k in ("travel", "vibration")}
     if report.get("container") == "analyser CSV" and str(wanted["travel"]).strip().lower() == "travel":
         wired = [a["name"] for a in report["analog"] if a.get("kind") == "travel" and a.get("wired")]
-        report["mapping"]["travel"] = wired[0] if wired else None  # the first wired contact travel
+        clean = [n for n in wired if not any(m["channel"] == n for m in report["masked"])]
+        # the first wired contact travel without over-range samples, as the capture reader picks it
+        report["mapping"]["travel"] = (clean or wired or [None])[0]
     report["mapping_source"] = "breaker file" if channels else "default channel names"
     return report
 
@@ -130,7 +132,15 @@ def _inspect_comtrade(path: Path, encoding: str | None) -> dict:
         "analog": [{"name": ch.name, "unit": ch.unit, **_stats(x)} for ch, x in zip(h.analog, rec.analog)],
         "digital": [{"name": ch.name} for ch in h.digital],
         "warnings": list(rec.warnings),
+        "masked": _stored_masked(path),
     }
+
+
+def _stored_masked(path: Path) -> list:
+    """hvcb's own COMTRADE keeps a record's over-range spans in its .hdr."""
+    from .comtrade_writer import stored_masked_spans
+
+    return stored_masked_spans(path) if path.suffix.lower() == ".cfg" else []
 
 
 def _inspect_analyser(path: Path, text: str, enc: str, rate: float | None) -> dict:
@@ -152,6 +162,8 @@ def _inspect_analyser(path: Path, text: str, enc: str, rate: float | None) -> di
                     **_stats(c.data)} for c in rec.channels],
         "digital": [], "warnings": list(rec.warnings), "bare": rec.bare,
         "metadata": md, "results": rec.results, "unparsed": [dict(u) for u in rec.unparsed],
+        "masked": [m for c in rec.channels for m in c.masked_spans(fs)],
+        "over_range_throughout": [c.name for c in rec.channels if c.over_range_throughout],
     }
 
 
@@ -266,6 +278,16 @@ def format_report(r: dict) -> str:
     if r.get("unparsed"):
         out.append(f"unparsed  {len(r['unparsed'])} header field(s) kept as written")
         out += [f"  line {u['line']}: {u['key']} = {u['text']!r} ({u['why']})" for u in r["unparsed"]]
+    if r.get("masked"):
+        from drivers.masked import describe
+
+        out.append(f"masked    {sum(m['count'] for m in r['masked'])} over-range sample(s) in "
+                   f"{len(r['masked'])} span(s) (marked ∞ or NaN: missing, not measured)")
+        out += [f"  {describe(m)}" for m in r["masked"][:MAX_LISTED]]
+        if len(r["masked"]) > MAX_LISTED:
+            out.append(f"  ... and {len(r['masked']) - MAX_LISTED} more")
+    if r.get("over_range_throughout"):
+        out.append("refused   over-range throughout (no reading): " + ", ".join(r["over_range_throughout"]))
     if r["warnings"]:
         out.append("warnings")
         out += [f"  - {w}" for w in r["warnings"]]

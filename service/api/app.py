@@ -170,6 +170,12 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
     from .routes_prognosis import router as prognosis_router  # issue 31
 
     app.include_router(prognosis_router)
+    from .routes_setting import router as setting_router  # issue 39: the spring setting
+
+    app.include_router(setting_router)
+    from .routes_reports import router as reports_router  # issue 38: condition report, CSV exports
+
+    app.include_router(reports_router)
 
     from .routes_keys import router as keys_router
 

@@ -175,7 +175,12 @@ def get_operation(operation_id: OperationId, session: SessionDep, _: ReaderDep):
     op = crud.get_operation(session, operation_id=operation_id)
     if op is None:
         raise HTTPException(404, f"no operation {operation_id}")
-    return op
+    from service.acquisition.comtrade_writer import stored_masked_spans
+
+    out = s.OperationPublic.model_validate(op)
+    out.masked_samples = [s.MaskedSpan(**{k: m[k] for k in ("channel", "first_s", "last_s", "count")})
+                          for m in (stored_masked_spans(op.capture_path) if op.capture_path else [])]
+    return out
 
 
 @router.get("/operations/{operation_id}/diagnosis", response_model=s.DiagnosisPublic,

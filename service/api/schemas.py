@@ -7,7 +7,7 @@ from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, PlainSerializer, RootModel, WithJsonSchema
 
-from .schemas_record import OperationEvents, RecordedChannel, UploadedOperation
+from .schemas_record import MaskedSpan, OperationEvents, RecordedChannel, UploadedOperation
 
 
 def iso_z(t: datetime | None) -> str | None:
@@ -111,6 +111,9 @@ class OperationPublic(ORM):
     temperature_c: float | None = Field(None, description="temperature of the operation [C] (docs/alarms.md)")
     temperature_source: str | None = Field(None, description="channel | upload | agent | scada")
     fit: FitPublic | None = None
+    masked_samples: list[MaskedSpan] = Field(
+        default_factory=list, description="samples the recorder marked over-range (∞, NaN), per channel and "
+                                          "span: missing, not measured (GET /operations/{id} only)")
 
 
 class CurvePublic(BaseModel):

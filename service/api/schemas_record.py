@@ -26,3 +26,12 @@ class OperationEvents(BaseModel):
     contact_event: str = Field(description="'contact part' (opening) or 'contact touch' (closing)")
     contact_s: float | None = Field(None, description="[s from the first sample]")
     contact_source: str | None = Field(None, description="the DCRM step, else the travel's contact point")
+
+
+class MaskedSpan(BaseModel):
+    """A run of samples the recorder marked over-range (∞, NaN, OL): missing, not measured."""
+
+    channel: str = Field(description="the record's channel name (T1, C4, R1 ...)")
+    first_s: float = Field(description="first masked sample [s from the operation's first sample]")
+    last_s: float = Field(description="last masked sample [s from the operation's first sample]")
+    count: int = Field(description="masked samples in the span")

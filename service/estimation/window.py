@@ -13,6 +13,7 @@ from scipy.ndimage import uniform_filter1d
 from scipy.stats import median_abs_deviation
 
 from drivers.capture import Capture
+from drivers.masked import describe, overlapping
 from ..mechanics.breaker import Breaker
 from ..mechanics.coordinates import operation_coordinate
 
@@ -175,6 +176,7 @@ def prepare_window(capture: Capture, breaker: Breaker, operation: str) -> FitWin
     noise = max(noise, 1e-7)
     i_end, t_end = _peak(y, smooth, i_move, fs, operation, noise, stroke, src)
     _check_saturation(capture, i_shock, i_end, src)
+    _check_masked(capture, i_shock, i_end, src, operation)
     t_start = i_shock / fs
     sl = slice(i_shock, i_end + 1)
     t = np.arange(i_end + 1 - i_shock) / fs
@@ -182,6 +184,20 @@ def prepare_window(capture: Capture, breaker: Breaker, operation: str) -> FitWin
         raise FitError(f"{src}: the valid interval is only {t.size / fs * 1e3:.1f} ms long")
     return FitWindow(t, y[sl].copy(), t_start, t_end, noise, noise_source, shock_found, fs,
                      tau_range, command_source)
+
+
+def _check_masked(capture: Capture, i0: int, i1: int, src: str, operation: str) -> None:
+    """Refuse, in words, a window that holds travel samples the recorder marked over-range: they
+    are carried filled (a straight line), not measured. Spans outside the window do no harm."""
+    channel = capture.meta.get("travel_channel", "travel")
+    hit = overlapping(capture.meta.get("masked"), channel, i0, i1)
+    if hit:
+        fs = capture.sample_rate
+        raise FitError(f"{src}: travel {channel} is over-range (marked ∞ or NaN by the recorder) inside the "
+                       f"{operation_word(operation)}'s window ({1e3 * i0 / fs:.1f}–{1e3 * i1 / fs:.1f} ms): "
+                       + "; ".join(describe(s) for s in hit[:3])
+                       + f". The fit cannot use {channel} for this operation: fit another phase "
+                         "([channels] travel in the breaker file)")
 
 
 def operation_word(operation: str) -> str:

@@ -235,6 +235,22 @@ class PrognosisRow(Base):
     updated_at: Mapped[datetime] = mapped_column(default=utcnow)
 
 
+class SpringReferenceRow(Base):
+    """A breaker's commissioning pair: a closing and an opening recorded at a known nut setting.
+    The newest row is the reference its pairs' settings are read against (docs/pairs.md);
+    ``reading`` is the pair's own reading then (steps, sd, friction from the design seat)."""
+
+    __tablename__ = "spring_references"
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    breaker_id: Mapped[int] = mapped_column(ForeignKey("breakers.id", ondelete="CASCADE"), index=True)
+    opening_id: Mapped[int] = mapped_column(ForeignKey("operations.id", ondelete="CASCADE"))
+    closing_id: Mapped[int] = mapped_column(ForeignKey("operations.id", ondelete="CASCADE"))
+    known_steps: Mapped[float] = mapped_column(Float)
+    reading: Mapped[dict] = mapped_column(default=dict)
+    recorded_by: Mapped[str] = mapped_column(String(200))
+    recorded_at: Mapped[datetime] = mapped_column(default=utcnow)
+
+
 class ApiKeyRow(Base):
     """An API key: only its SHA-256 is stored (keys are 256-bit random, so a fast hash is enough)."""
 

@@ -30,8 +30,8 @@ import numpy as np
 from .classification_methods import (
     DEFAULT_SEED, FIELD_NUISANCE, METHODS, PAPER_ACCURACY, UNIT_TOLERANCE, classification_spec,
     folds_for, method_makers)
-from .classify_pairs import (PAIR_PROTOCOLS, PAIR_TARGET, build_pairs, ceilings, identifiability_table,
-                             run_pair_protocols, setting_inference)
+from .classify_pairs import (PAIR_PROTOCOLS, PAIR_TARGET, build_pairs, ceilings, identifiability_kO_section,
+                             identifiability_table, run_pair_protocols, setting_inference)
 from .common import DEFAULT_WORKERS, load_reference
 from .condition_cnn import torch_available
 from .condition_classifiers import cross_validate, train_test
@@ -105,7 +105,7 @@ def run(out_dir: Path, *, seed: int = DEFAULT_SEED, quick: bool = False,
         "confusion": {p: {m: res[p][m]["confusion"] for m in main} for p in ALL_PROTOCOLS},
         "ceiling": ceilings(single, pairs, folds),
         "identifiability": identifiability_table(pairs),
-        "setting_inference": setting_inference(pairs),
+        "setting_inference": setting_inference(pairs, unit2.kO / base.kO),
         "variants": {VARIANT: {"protocols": {p: res[p][VARIANT]["accuracy"] for p in PROTOCOLS},
                                "confusion": {p: res[p][VARIANT]["confusion"] for p in PROTOCOLS},
                                "note": "nominal vector per setting for every parameter (issue 5's "
@@ -255,20 +255,22 @@ def _write_tables(out_dir, result):
     rows = []
     for m in METHODS:
         if m in result["skipped"]:
-            rows.append([m, None, None, None, None, 100 * PAPER_ACCURACY[m],
+            rows.append([m] + [None] * len(ALL_PROTOCOLS) + [100 * PAPER_ACCURACY[m],
                          f"skipped: {result['skipped'][m]}"])
             continue
         folds = ", ".join(f"{100 * a:.1f}" for a in result["cv5_fold_accuracy"][m])
         rows.append([m] + [100 * result["protocols"][p][m] for p in ALL_PROTOCOLS]
                     + [100 * PAPER_ACCURACY[m], folds])
     v = result["variants"][VARIANT]["protocols"]
-    rows.append([f"({VARIANT})", 100 * v["cv5"], 100 * v["cross_unit"], None, None, None,
-                 ", ".join(f"{100 * a:.1f}" for a in result["cv5_fold_accuracy_variant"])])
+    rows.append([f"({VARIANT})", 100 * v["cv5"], 100 * v["cross_unit"]] + [None] * (len(PAIR_PROTOCOLS) + 1)
+                + [", ".join(f"{100 * a:.1f}" for a in result["cv5_fold_accuracy_variant"])])
     ce = result["ceiling"]
     rows.append(["(ceiling: simulator's true BO / true BO and CC)", 100 * ce["single_opening_true_BO"]["cv5"],
                  100 * ce["single_opening_true_BO"]["cross_unit"], 100 * ce["pair_true_BO_CC"]["cv5"],
-                 100 * ce["pair_true_BO_CC"]["cross_unit"], None, "no fit error, no sensor"])
-    sections = [identifiability_section(result["identifiability"])]
+                 100 * ce["pair_true_BO_CC"]["cross_unit"]] + [None] * (len(PAIR_PROTOCOLS) - 1)
+                + ["no fit error, no sensor"])
+    sections = [identifiability_section(result["identifiability"]),
+                identifiability_kO_section(result["identifiability"])]
     for p in ALL_PROTOCOLS:
         for m in METHODS:
             if m not in result["confusion"][p]:

@@ -19,6 +19,7 @@ STUDIES = {
     "optimizers": "service.studies.optimizers:run",
     "conditions": "service.studies.conditions:run",
     "classify": "service.studies.classify:run",
+    "classify-pairs": "service.studies.classify_pair_run:run",
     "gap": "service.studies.gap:run_gap_study",
 }
 

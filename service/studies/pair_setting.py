@@ -21,6 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..mechanics.breaker import Breaker
+from ..mechanics.spring_setting import steps_per_kO
 from .condition_data import STEP_M
 
 # The fitted parameters the pair estimator reads: the opening's AO and BO, the closing's BC and CC.
@@ -161,3 +162,84 @@ class PairSetting:
         lo, hi = self.classes_.min(), self.classes_.max()
         labels = np.clip(np.rint(np.nan_to_num(k, nan=-1.0)), lo, hi).astype(int)
         return np.where(np.isfinite(k), labels, -1)
+
+
+class CommissionedPairSetting(PairSetting):
+    """:class:`PairSetting` for a unit it was not trained on, anchored by that unit's
+    commissioning pair: one pair ``reference`` (its inputs) recorded at a known setting
+    ``known`` [steps]. The unit's spring rate kO moves every estimate by one offset (it enters
+    the pre-load torques of BO and CC alike, :func:`~service.mechanics.spring_setting.steps_per_kO`
+    per unit of κ); the reference pair measures that offset, and it is removed."""
+
+    def __init__(self, reference, known: float, friction=None):
+        super().__init__(friction)
+        self.reference, self.known = np.asarray(reference, float), float(known)
+
+    def fit(self, X, y):
+        super().fit(X, y)
+        k_ref, _ = super().infer(self.reference[None, :])
+        self.offset_ = float(k_ref[0]) - self.known
+        return self
+
+    def infer(self, X):
+        """Setting [steps] and its sd [steps]: the pair's and the reference's errors together."""
+        k, sd = super().infer(X)
+        return k - self.offset_, np.sqrt(2.0) * sd
+
+
+def identifiability_kO(breaker: Breaker, cov: np.ndarray, step_nm: float, n_pairs: int,
+                       f_scale: float = 0.10) -> dict:
+    """The identifiability table with the unit's spring rate free: unknowns (P, f, κ), κ the
+    unit's kO over the design's, from the fits' own covariance ``cov`` of (AO, BO, CC) [s^-2].
+
+    Jacobian (the design's, per unit of each unknown): BO (1/J2, −TOf/J2, kO·xO1·rO/J2), CC
+    (1/J2, TCf/J2, kO·xO0·rO/J2), AO (0, 0, kO·rO²/J2). P and f are per pair; κ is the unit's,
+    shared by its ``n_pairs`` pairs, so its information adds up over them.
+
+    Returns
+    -------
+    dict
+        ``sets``: per observation set its ``rank`` in (P, f, κ), and when κ is not identified
+        the direction it cannot see (``steps_per_kO_percent``: nut steps per 1 % of kO); when
+        it is, the Cramér–Rao sd of κ from one pair and from ``n_pairs``, and of the setting
+        [steps] with κ from the unit's pairs. ``commissioned``: one pair at a known setting
+        removes κ's offset; the sd of a reading is √2 × the κ-known pair sd.
+    """
+    b = breaker
+    J = {"AO": [0.0, 0.0, b.kO * b.rO ** 2 / b.J2],
+         "BO": [1.0 / b.J2, -b.TOf / b.J2, b.kO * b.xO1 * b.rO / b.J2],
+         "CC": [1.0 / b.J2, b.TCf / b.J2, b.kO * b.xO0 * b.rO / b.J2]}
+    names = ("AO", "BO", "CC")
+    cov = np.asarray(cov, float)
+    per_kappa = steps_per_kO(b)
+    out = {"unknowns": ["P [N·m]", "f [-]", "kappa = kO/kO_design [-]"], "jacobian": J,
+           "steps_per_kO_percent": per_kappa / 100.0, "n_pairs": n_pairs, "sets": {}}
+    for name, obs in (("pair BO, CC", ("BO", "CC")), ("pair AO, BO, CC", ("AO", "BO", "CC"))):
+        idx = [names.index(o) for o in obs]
+        A = np.array([J[o] for o in obs])
+        W = np.linalg.inv(cov[np.ix_(idx, idx)])
+        fisher = A.T @ W @ A
+        scale = np.diag([step_nm, f_scale, 0.01])  # P in steps, f in its ±10 %, κ in 1 %
+        sv = np.linalg.svd(scale @ fisher @ scale, compute_uv=False)
+        rank = int(np.sum(sv > 1e-9 * sv[0]))
+        row = {"observations": list(obs), "rank": rank, "condition_number":
+               float(sv[0] / sv[-1]) if sv[-1] > 1e-12 * sv[0] else None}  # None: singular (JSON has no ∞)
+        if rank < 3:
+            row["unseen"] = f"κ +1 % reads as {per_kappa / 100:+.2f} nut steps: P and κ trade exactly"
+        else:
+            # Per pair: Schur complement of (P, f) gives κ's information; the unit's pairs add it.
+            Ipp, Ipk, Ikk = fisher[:2, :2], fisher[:2, 2], fisher[2, 2]
+            info_k = float(Ikk - Ipk @ np.linalg.solve(Ipp, Ipk))
+            sd_k1 = 1.0 / np.sqrt(info_k)
+            sd_kn = sd_k1 / np.sqrt(n_pairs)
+            sd_P_known = float(np.sqrt(np.linalg.inv(Ipp)[0, 0]))
+            row.update(sd_kappa_one_pair=sd_k1, sd_kappa_unit=sd_kn,
+                       sd_steps_kappa_from_unit=float(np.hypot(sd_P_known / step_nm, per_kappa * sd_kn)))
+        out["sets"][name] = row
+    Ipp = np.array([J[o][:2] for o in ("BO", "CC")])
+    W = np.linalg.inv(cov[np.ix_([1, 2], [1, 2])])
+    sd_P = float(np.sqrt(np.linalg.inv(Ipp.T @ W @ Ipp)[0, 0])) / step_nm
+    out["commissioned"] = {"sd_steps": float(np.sqrt(2.0) * sd_P), "sd_steps_kappa_known": sd_P,
+                           "note": "one pair at a known setting: κ's offset cancels; a reading carries "
+                                   "its own and the reference's error"}
+    return out

@@ -79,6 +79,12 @@ def mount_web(app: FastAPI) -> None:
     from .routes_prognosis import router as prognosis_router  # the breaker page's fan chart data
 
     app.include_router(prognosis_router)
+    from .routes_setting import router as setting_router  # the operation page's commissioning button
+
+    app.include_router(setting_router)
+    from .routes_reports import router as reports_router  # the condition report and CSV exports
+
+    app.include_router(reports_router)
     app.mount("/static", StaticFiles(directory=HERE / "static"), name="static")
 
     @app.exception_handler(auth.WebAuthError)

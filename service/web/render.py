@@ -85,6 +85,15 @@ def signed_change(rel, decimals: int = 1) -> str:
     return f"{pct:+.{decimals}f} %".replace("-", "−")
 
 
+def signed_number(v, decimals: int = 2) -> str:
+    """A signed number ("+0.42", "−1.30", "0.00": never "−0.00"), a dash for no number."""
+    v = _finite(v)
+    if v is None:
+        return "—"
+    text = f"{v:+.{decimals}f}"
+    return f"{0:.{decimals}f}" if float(text) == 0 else text.replace("-", "−")
+
+
 def _unit(name: str) -> str:
     from service.mechanics.nomenclature import UNITS
 
@@ -107,7 +116,7 @@ def build_templates() -> Jinja2Templates:
 
     # nopath: server paths cut to file names in what the page shows (D11, docs/security.md)
     env.filters.update(utc=_utc, iso=_iso, num=_num, fixed=_fixed, pct=_pct_half_width, nopath=redact_paths,
-                       sig=significant, change=signed_change, unit=_unit)
+                       sig=significant, change=signed_change, unit=_unit, signed=signed_number)
     return Jinja2Templates(env=env)
 
 

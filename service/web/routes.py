@@ -220,7 +220,9 @@ def operation_page(request: Request, operation_id: Id, user: Reader):
 
         pruned = get_preview(session, operation_id=op.id)
         names = OPENING if op.kind == "open" else CLOSING
-        from service.acquisition.comtrade_writer import stored_analyser_results
+        from service.acquisition.comtrade_writer import stored_analyser_results, stored_masked_spans
+
+        from service.storage.spring_references import setting_of
 
         from .diagnosis_view import view as diagnosis_view
 
@@ -228,6 +230,8 @@ def operation_page(request: Request, operation_id: Id, user: Reader):
         ctx = {"op": op, "b": b, "fit": op.fit, "diag": diag, "names": names, "units": UNITS,
                "CHARACTERISTICS": CHARACTERISTICS, "nav": "fleet", "pruned": pruned,
                "analyser": analyser_table(analyser),
+               "masked": stored_masked_spans(op.capture_path) if op.capture_path else [],
+               "setting": setting_of(session, op, crud.breaker_model(b)),
                "diag_view": diagnosis_view(diag.result) if diag is not None and diag.status == "done" else None}
     return page(request, "operation.html", ctx)  # rendered with the connection back
 

@@ -36,6 +36,8 @@ class Spec:
     seed: int = 1
     stated_rate: float | None = None  # header rate if different from the true one
     extra: dict = field(default_factory=dict)
+    # Over-range samples written as the analyser does: {travel channel number: (from ms, to ms, "∞")}
+    over_range: dict = field(default_factory=dict)
 
 
 def truth():
@@ -124,10 +126,14 @@ def export_text(spec: Spec) -> tuple[str, dict]:
              + sum(([f"DCRM Res CH{i} in uOhm", f"DCRM Current CH{i} in Amp"] for i in range(1, 7)), []))
     lines.append(",".join(names) + ",")
     tail = "," if spec.trailing_comma else ""
+    marks = {}  # (sample, travel row) -> the over-range spelling
+    for ch, (a_ms, b_ms, word) in spec.over_range.items():
+        for k in np.flatnonzero((t >= a_ms * 1e-3 - 1e-9) & (t <= b_ms * 1e-3 + 1e-9)):
+            marks[(int(k), ch - 1)] = word
     for k in range(n):
         dcrm = [res[k], cur[k]] + [8000.0, 0.0] * 5
         lines.append(",".join(f"{c:.3f}" for c in coils[:, k]) + ", ,"
-                     + ",".join(f"{x:.2f}" for x in travel[:, k]) + " ,,"
+                     + ",".join(marks.get((k, j), f"{x:.2f}") for j, x in enumerate(travel[:, k])) + " ,,"
                      + ",".join(f"{x:.2f}" for x in dcrm) + tail)
     eol = "\r\n" if spec.crlf else "\n"
     return eol.join(lines) + eol, tr
@@ -135,5 +141,5 @@ def export_text(spec: Spec) -> tuple[str, dict]:
 
 def write_export(path, spec: Spec) -> dict:
     text, tr = export_text(spec)
-    path.write_bytes(text.encode("ascii"))
+    path.write_bytes(text.encode("utf-8"))
     return tr

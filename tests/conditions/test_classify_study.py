@@ -25,9 +25,11 @@ def test_json_has_both_protocols_the_four_methods_and_the_nuisance(study):
     out, _ = study
     data = json.loads((out / "classify.json").read_text())
     methods = {"proposed", "svm", "bpnn"} | ({"cnn"} if torch_available()[0] else set())
-    assert set(data["protocols"]) == {"cv5", "cross_unit", "cv5_pair", "cross_unit_pair"}
+    assert set(data["protocols"]) == {"cv5", "cross_unit", "cv5_pair", "cross_unit_pair",
+                                      "cross_unit_pair_commissioned"}
     for proto, n in (("cv5", data["samples"]["unit1"]), ("cross_unit", data["samples"]["unit2"]),
-                     ("cv5_pair", data["samples"]["unit1"]), ("cross_unit_pair", data["samples"]["unit2"])):
+                     ("cv5_pair", data["samples"]["unit1"]), ("cross_unit_pair", data["samples"]["unit2"]),
+                     ("cross_unit_pair_commissioned", data["samples"]["unit2"] - 1)):
         assert set(data["protocols"][proto]) == methods
         for m in methods:
             acc = data["protocols"][proto][m]
@@ -44,7 +46,8 @@ def test_json_has_both_protocols_the_four_methods_and_the_nuisance(study):
     lo, hi = nz["drawn_range"]["snr_db"]
     assert 40.0 <= lo < hi <= 55.0
     assert set(data["acceptance"]) == {"cv5 proposed >= 98.3 %", "cross_unit proposed >= 95.0 %",
-                                       "cv5_pair proposed >= 95.0 %", "cross_unit_pair proposed >= 90.0 %"}
+                                       "cv5_pair proposed >= 95.0 %", "cross_unit_pair proposed >= 90.0 %",
+                                       "cross_unit_pair_commissioned proposed >= 90.0 %"}
     assert set(data["ceiling"]) == {"single_opening_true_BO", "pair_true_BO_CC"}
     md = (out / "classify.md").read_text()
     assert "paper Table 9" in md and "98.3" in md and "cross_unit_pair" in md and "identifiability" in md
@@ -66,6 +69,13 @@ def test_the_pair_separates_the_settings_where_one_opening_cannot(study):
     assert ce["single_opening_true_BO"]["cv5"] < 0.9
     # The fitted pairs: the proposed rule beats the single-opening one on the same unit.
     assert res["protocols"]["cv5_pair"]["proposed"] > res["protocols"]["cv5"]["proposed"]
+    # With the unit's spring rate free, the pair's BO and CC are rank 2 in (P, f, κ); AO makes it 3.
+    ko = res["identifiability"]["kO_free"]
+    assert ko["sets"]["pair BO, CC"]["rank"] == 2 and ko["sets"]["pair AO, BO, CC"]["rank"] == 3
+    assert ko["steps_per_kO_percent"] == pytest.approx(0.423, abs=1e-3)
+    si = res["setting_inference"]
+    assert si["kO_from_AO"]["kappa_drawn"] == pytest.approx(res["unit2_constants"]["kO"])
+    assert 0.0 <= si["physical"]["unit2_commissioned"]["coverage_95"] <= 1.0
 
 
 def test_with_little_friction_spread_the_proposed_method_separates_the_settings(study):
@@ -142,3 +152,60 @@ def test_pair_setting_reads_the_setting_through_a_friction_that_moves_two_parame
     assert np.std(model.friction(X) - (f - f.mean())) < 0.05
     one = PairSetting().fit(X[:, :1], y)  # one column alone: the friction is not separable
     assert np.mean(one.predict(X[:, :1]) == y) < 0.8
+
+
+def test_a_commissioning_pair_removes_a_units_offset():
+    """Unit 2 reads 0.5 steps high (its spring rate); one of its pairs at a known setting
+    measures that offset, and the others are read right."""
+    from service.studies.pair_setting import CommissionedPairSetting
+
+    rng = np.random.default_rng(5)
+    y = np.repeat(np.arange(5), 30)
+    X1 = np.column_stack([y, y]) * 150.0 + rng.normal(0, 5, (y.size, 2))
+    X2 = np.column_stack([y + 0.5, y + 0.5]) * 150.0 + rng.normal(0, 5, (y.size, 2))
+    plain = PairSetting().fit(X1, y)
+    assert np.mean(plain.predict(X2) == y) < 0.6
+    ref = int(np.flatnonzero(y == 2)[0])
+    c = CommissionedPairSetting(X2[ref], 2).fit(X1, y)
+    assert c.offset_ == pytest.approx(0.5, abs=0.1)
+    rest = np.arange(y.size) != ref
+    assert np.mean(c.predict(X2[rest]) == y[rest]) == 1.0
+    _, sd = c.infer(X2)
+    assert sd[0] == pytest.approx(np.sqrt(2) * plain.sd_steps_)
+
+
+def test_the_spring_rate_is_not_identifiable_from_bo_and_cc_and_one_known_pair_fixes_it():
+    from service.studies.common import load_reference
+    from service.studies.pair_setting import identifiability_kO
+
+    b = load_reference()
+    cov = np.array([[19000.0, 5100.0, 2300.0], [5100.0, 1400.0, 630.0], [2300.0, 630.0, 3000.0]])
+    ko = identifiability_kO(b, cov, 36.4, n_pairs=200)
+    assert ko["sets"]["pair BO, CC"]["rank"] == 2 and ko["sets"]["pair BO, CC"]["condition_number"] is None
+    assert "κ +1 % reads as +0.42 nut steps" in ko["sets"]["pair BO, CC"]["unseen"]
+    full = ko["sets"]["pair AO, BO, CC"]
+    assert full["rank"] == 3 and full["sd_kappa_unit"] == pytest.approx(full["sd_kappa_one_pair"] / np.sqrt(200))
+    assert ko["commissioned"]["sd_steps"] == pytest.approx(np.sqrt(2) * ko["commissioned"]["sd_steps_kappa_known"])
+
+
+def test_the_pairs_only_study_reuses_the_pair_fits_and_writes_the_three_protocols(study, tmp_path):
+    """`hvcb study classify-pairs` on the quick study's cached pair fits (no fit is redone)."""
+    import shutil
+
+    from service.studies import classify_pair_run
+
+    out, res = study
+    for f in out.glob("dataset-*.npz"):
+        shutil.copy(f, tmp_path)
+    before = sorted(p.name for p in tmp_path.glob("dataset-*.npz"))
+    got = classify_pair_run.run(tmp_path, quick=True, methods=["proposed", "svm"])
+    assert sorted(p.name for p in tmp_path.glob("dataset-*.npz")) == before  # no new fit
+    assert got["pairs_only"] and set(got["protocols"]) == {"cv5_pair", "cross_unit_pair",
+                                                           "cross_unit_pair_commissioned"}
+    for p in ("cv5_pair", "cross_unit_pair", "cross_unit_pair_commissioned"):
+        assert got["protocols"][p]["proposed"] == pytest.approx(res["protocols"][p]["proposed"])
+    assert got["ceiling"]["single_opening_source"].startswith("the openings of the pair set")
+    md = (tmp_path / "classify.md").read_text()
+    assert "identifiability with the unit's spring rate free" in md and "kO from the unit's own AO·BC" in md
+    data = json.loads((tmp_path / "classify.json").read_text())
+    assert data["identifiability"]["kO_free"]["sets"]["pair BO, CC"]["condition_number"] is None
