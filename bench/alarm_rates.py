@@ -115,21 +115,34 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--breakers", type=int, default=1000, help="in-control breakers")
     ap.add_argument("--ops", type=int, default=1020, help="operations per in-control breaker")
-    ap.add_argument("--seasonal-breakers", type=int, default=500)
+    ap.add_argument("--seasonal-breakers", type=int, default=1000, help="10^6 operations with 1020 each")
     ap.add_argument("--uncompensated-breakers", type=int, default=100)
     ap.add_argument("--drift-histories", type=int, default=1000, help="per drift case, onset at op 30")
     ap.add_argument("--frozen-drift-histories", type=int, default=500, help="per drift case, onset at op 300")
     ap.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1))
     ap.add_argument("--seed", type=int, default=2026)
     ap.add_argument("--out", type=Path, default=RESULTS)
+    ap.add_argument("--quick", action="store_true",
+                    help="development size: 50 in-control, 200 seasonal, 20 uncompensated breakers, 100/50 drifts")
+    ap.add_argument("--common-mode-z", type=float, default=None,
+                    help="override DriftSettings.common_mode_z (0: the slope's error scored as noise)")
+    ap.add_argument("--temperature-only", action="store_true",
+                    help="only the cases with a temperature given (seasonal in control and the seasonal 5 %% "
+                         "steps): the common-mode allowance is 0 without a temperature, so the other "
+                         "figures are those of the last full run by construction")
     a = ap.parse_args(argv)
-    settings = DriftSettings()
+    if a.quick:
+        a.breakers, a.seasonal_breakers, a.uncompensated_breakers = 50, 200, 20
+        a.drift_histories, a.frozen_drift_histories = 100, 50
+    settings = DriftSettings() if a.common_mode_z is None else DriftSettings(common_mode_z=a.common_mode_z)
     sd = settings.to_dict()
     t_start = time.perf_counter()
 
     jobs = []
 
     def add(kind, parameter, n, kw, case):
+        if a.temperature_only and not kw.get("give_temperature"):
+            return  # (the case numbers, and so every seed, stay those of the full run)
         seeds = [[a.seed, case, b] for b in range(n)]
         for ch in _chunks(seeds, 25):
             jobs.append((kind, parameter, ch, kw, sd))
@@ -154,6 +167,13 @@ def main(argv=None) -> int:
             add(f"{name}@{start}", p, a.drift_histories if start == 30 else a.frozen_drift_histories,
                 {"n_ops": start + length, "drift": drift, "rate": rate, "start": start}, case)
 
+    # The same 5 % steps on breakers with the seasonal temperature given (compensated), onset
+    # at 300: the common-mode allowance must not slow their detection much.
+    for p, rate in (("DO", -0.05), ("BO", -0.05), ("BO", +0.05)):
+        case += 1
+        add("step5_seasonal@300", p, a.frozen_drift_histories,
+            {"n_ops": 330, "drift": "step", "rate": rate, "start": 300, "seasonal": True,
+             "give_temperature": True}, case)
     results: dict = {}
     with ProcessPoolExecutor(max_workers=a.workers) as pool:
         for kind, parameter, out in pool.map(_job, jobs):
@@ -182,41 +202,50 @@ def main(argv=None) -> int:
                     d.append(op - start)
         return np.array(d), missed
 
-    ic_ops, ic_w, ic_a = rates("control")
     se_ops, se_w, se_a = rates("seasonal")
-    su_ops, su_w, su_a = rates("seasonal_uncompensated")
-    out = {"in_control_operations": int(ic_ops), "in_control_breakers": a.breakers,
-           "false_warnings_per_10k_ops": round(ic_w, 4), "false_alarms_per_10k_ops": round(ic_a, 4)}
-    for start in (30, 300):
-        sfx = "" if start == 30 else "_frozen_baseline"
-        d, missed = delays(f"ramp1@{start}", ["DO", "BO"], start)
-        out[f"ramp_1pct_delay_median_ops{sfx}"] = float(np.median(d))
-        out[f"ramp_1pct_delay_p95_ops{sfx}"] = float(np.percentile(d, 95))
-        out[f"ramp_1pct_delay_max_ops{sfx}"] = int(d.max())
-        out[f"ramp_1pct_not_after_onset{sfx}"] = int(missed)
-        dl, ml = delays(f"leak@{start}", ["DO"], start)
-        drop = dl * 0.1  # % fallen when the alarm came
-        out[f"ramp_0p1pct_detect_median_drop_pct{sfx}"] = float(np.median(drop)) if drop.size else None
-        out[f"ramp_0p1pct_detect_p95_drop_pct{sfx}"] = float(np.percentile(drop, 95)) if drop.size else None
-        out[f"ramp_0p1pct_missed_or_early{sfx}"] = int(ml)
-        ds, ms = delays(f"step5@{start}", ["DO", "BO"], start)
-        out[f"step_5pct_delay_median_ops{sfx}"] = float(np.median(ds))
-        out[f"step_5pct_delay_p95_ops{sfx}"] = float(np.percentile(ds, 95))
-        out[f"step_5pct_within_3_ops_fraction{sfx}"] = round(float(np.mean(ds <= 3)), 4)
-        out[f"step_5pct_not_after_onset{sfx}"] = int(ms)
-        dw = delays(f"ramp1@{start}", ["DO", "BO"], start, level=3)[0]
-        out[f"ramp_1pct_warning_delay_median_ops{sfx}"] = float(np.median(dw))
+    out = {"temperature_only": a.temperature_only}
+    if not a.temperature_only:
+        ic_ops, ic_w, ic_a = rates("control")
+        out.update({"in_control_operations": int(ic_ops), "in_control_breakers": a.breakers,
+               "false_warnings_per_10k_ops": round(ic_w, 4), "false_alarms_per_10k_ops": round(ic_a, 4)})
+        for start in (30, 300):
+            sfx = "" if start == 30 else "_frozen_baseline"
+            d, missed = delays(f"ramp1@{start}", ["DO", "BO"], start)
+            out[f"ramp_1pct_delay_median_ops{sfx}"] = float(np.median(d))
+            out[f"ramp_1pct_delay_p95_ops{sfx}"] = float(np.percentile(d, 95))
+            out[f"ramp_1pct_delay_max_ops{sfx}"] = int(d.max())
+            out[f"ramp_1pct_not_after_onset{sfx}"] = int(missed)
+            dl, ml = delays(f"leak@{start}", ["DO"], start)
+            drop = dl * 0.1  # % fallen when the alarm came
+            out[f"ramp_0p1pct_detect_median_drop_pct{sfx}"] = float(np.median(drop)) if drop.size else None
+            out[f"ramp_0p1pct_detect_p95_drop_pct{sfx}"] = float(np.percentile(drop, 95)) if drop.size else None
+            out[f"ramp_0p1pct_missed_or_early{sfx}"] = int(ml)
+            ds, ms = delays(f"step5@{start}", ["DO", "BO"], start)
+            out[f"step_5pct_delay_median_ops{sfx}"] = float(np.median(ds))
+            out[f"step_5pct_delay_p95_ops{sfx}"] = float(np.percentile(ds, 95))
+            out[f"step_5pct_within_3_ops_fraction{sfx}"] = round(float(np.mean(ds <= 3)), 4)
+            out[f"step_5pct_not_after_onset{sfx}"] = int(ms)
+            dw = delays(f"ramp1@{start}", ["DO", "BO"], start, level=3)[0]
+            out[f"ramp_1pct_warning_delay_median_ops{sfx}"] = float(np.median(dw))
+    ds, ms = delays("step5_seasonal@300", ["DO", "BO"], 300)
+    out.update({"step_5pct_seasonal_compensated_delay_median_ops": float(np.median(ds)),
+                "step_5pct_seasonal_compensated_delay_p95_ops": float(np.percentile(ds, 95)),
+                "step_5pct_seasonal_compensated_within_3_ops_fraction": round(float(np.mean(ds <= 3)), 4),
+                "step_5pct_seasonal_compensated_not_after_onset": int(ms)})
+    if not a.temperature_only:
+        su_ops, su_w, su_a = rates("seasonal_uncompensated")
+        out.update({"seasonal_uncompensated_operations": int(su_ops),
+                    "seasonal_false_warnings_per_10k_ops_uncompensated": round(su_w, 4),
+                    "seasonal_false_alarms_per_10k_ops_uncompensated": round(su_a, 4)})
     out.update({"seasonal_operations": int(se_ops),
                 "seasonal_false_warnings_per_10k_ops": round(se_w, 4),
                 "seasonal_false_alarms_per_10k_ops": round(se_a, 4),
-                "seasonal_uncompensated_operations": int(su_ops),
-                "seasonal_false_warnings_per_10k_ops_uncompensated": round(su_w, 4),
-                "seasonal_false_alarms_per_10k_ops_uncompensated": round(su_a, 4),
                 "drift_histories_per_case": a.drift_histories,
                 "frozen_drift_histories_per_case": a.frozen_drift_histories,
                 "thresholds": {"k": settings.k, "h_warning": round(settings.h_warning, 4),
                                "h_alarm": round(settings.h_alarm, 4), "z_cap": settings.z_cap,
-                               "baseline_n": settings.baseline_n, "baseline_max": settings.baseline_max},
+                               "baseline_n": settings.baseline_n, "baseline_max": settings.baseline_max,
+                               "common_mode_z": settings.common_mode_z},
                 "targets": {"false_warnings_per_10k_ops": 0.5, "false_alarms_per_10k_ops": 0.05,
                             "ramp_1pct_delay_median_ops": 6, "ramp_1pct_delay_p95_ops": 10,
                             "ramp_0p1pct_detect_median_drop_pct": 8, "step_5pct_delay_median_ops": 3},

@@ -404,7 +404,7 @@ def _worker_pids(service, procs) -> list[int]:
 def analyse(engine, url: str, tmp: Path, scripts, daqs: Daqs, per: list[int]) -> dict:
     from sqlalchemy import select
 
-    from service.storage.models import AlarmRow, BreakerRow, FitRow, OperationRow
+    from service.storage.models import AlarmRow, BreakerRow, FitRow, OperationRow, PrognosisRow
 
     with engine.connect() as c:
         breakers = {r.name: r.id for r in c.execute(select(BreakerRow.id, BreakerRow.name))}
@@ -413,6 +413,8 @@ def analyse(engine, url: str, tmp: Path, scripts, daqs: Daqs, per: list[int]) ->
                         .join(FitRow, FitRow.operation_id == OperationRow.id)).all()
         alarms = c.execute(select(AlarmRow.breaker_id, AlarmRow.parameter, AlarmRow.level, AlarmRow.state,
                                   AlarmRow.evidence, AlarmRow.operation_id)).all()
+        # the worker's prognosis, stored with each fit (issue 37): its last words per breaker
+        prognoses = c.execute(select(PrognosisRow.breaker_id, PrognosisRow.parameter, PrognosisRow.result)).all()
     names = {v: k for k, v in breakers.items()}
     # each stored operation -> the scripted capture it came from, by stream position
     starts = [np.array([h[0] for h in handed]) for handed in daqs.handed]
@@ -475,6 +477,7 @@ def analyse(engine, url: str, tmp: Path, scripts, daqs: Daqs, per: list[int]) ->
         "fit_visible_warmup_operations_excluded": warmup,
         "fit_visible_p95_s_warmup": p95([d for _, d in latency[:warmup]]),
         **judge_alarms(scripts, alarms, names),
+        "prognoses_last": {f"{names[b]} {par}": (res or {}).get("fleet") for b, par, res in prognoses},
     }
 
 

@@ -140,7 +140,17 @@ def update(state: DriftState, obs: FitObservation,
     expected, var = model.predict(obs.temperature, obs.se)
     band = math.sqrt(var)
     z = (obs.value - expected) / band
-    u = normal_score(z, model.dof)
+    # The learnt temperature slope's error b_err is the same for every fit: its part of the
+    # prediction error, b_err (T - T_mean), is a common-mode bias, not independent noise. Scored
+    # as noise it would lift the CUSUM through a whole cold or hot season. So the score uses the
+    # independent part of the variance only, and the reference k grows by the bias's bound,
+    # common_mode_z sds of b_err times |T - T_mean|, in units of that score.
+    allowance, score_band = 0.0, band
+    if model.compensated and obs.temperature is not None and model.slope_var > 0:
+        common = model.slope_var * (obs.temperature - model.t_mean) ** 2
+        score_band = math.sqrt(max(var - common, 1e-300))
+        allowance = settings.common_mode_z * math.sqrt(common) / score_band
+    u = normal_score((obs.value - expected) / score_band, model.dof)
     # Persistence for extreme fits: a score beyond z_cap counts only when a neighbouring fit
     # backs it: it leans the same way (|score| >= k) and lies within z_cap of it (a ramp or a
     # step moves the scores together; a gross fit error jumps away from its neighbours), or
@@ -190,11 +200,12 @@ def update(state: DriftState, obs: FitObservation,
     s_f, run_f, len_f = state.s_falling, state.run_falling, state.run_length_falling
     for operation_id, score in to_apply:
         zc = min(settings.z_cap, max(-settings.z_cap, score))
+        # (a held fit is applied with this fit's allowance: consecutive fits, alike temperatures)
         if direction in ("rising", "both"):
-            s_r, run_r, len_r = _cusum_side(s_r, zc - settings.k, run_r, len_r,
+            s_r, run_r, len_r = _cusum_side(s_r, zc - settings.k - allowance, run_r, len_r,
                                             operation_id, settings)
         if direction in ("falling", "both"):
-            s_f, run_f, len_f = _cusum_side(s_f, -zc - settings.k, run_f, len_f,
+            s_f, run_f, len_f = _cusum_side(s_f, -zc - settings.k - allowance, run_f, len_f,
                                             operation_id, settings)
     state = replace(state, s_rising=s_r, run_rising=run_r, run_length_rising=len_r,
                     s_falling=s_f, run_falling=run_f, run_length_falling=len_f,

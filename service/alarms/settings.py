@@ -43,6 +43,8 @@ class DriftSettings(BaseModel):
     design_false_warnings_per_10k, design_false_alarms_per_10k : the in-control rates per breaker
         (all watched sides together) the thresholds are derived from [1 per 10 000 operations]
     z_cap : winsorisation of each fit's score: one fit adds at most z_cap - k [z]
+    common_mode_z : the temperature slope's error is the same for every fit (a common-mode
+        bias b_err (T - T_mean)); the CUSUM's reference absorbs it up to this many of its sds [-]
     clear_level, clear_count : the statistic must stay below clear_level [z] for clear_count
         consecutive fits to clear
     statistic_cap : upper bound of the CUSUM, so a repaired fault clears in bounded time [z]
@@ -64,6 +66,7 @@ class DriftSettings(BaseModel):
     design_false_warnings_per_10k: float = Field(0.25, gt=0, allow_inf_nan=False)
     design_false_alarms_per_10k: float = Field(0.025, gt=0, allow_inf_nan=False)
     z_cap: float = Field(3.0, gt=0, allow_inf_nan=False)
+    common_mode_z: float = Field(1.0, ge=0, allow_inf_nan=False)
     clear_level: float = Field(1.0, ge=0, allow_inf_nan=False)
     clear_count: int = Field(5, ge=1)
     statistic_cap: float = Field(10.0, gt=0, allow_inf_nan=False)

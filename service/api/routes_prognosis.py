@@ -8,7 +8,7 @@ from typing import Annotated
 from fastapi import APIRouter, Path as PathParam
 from pydantic import BaseModel, Field
 
-from service.jobs.prognosis import HOW_TO_ADD, breaker_prognoses
+from service.jobs.prognosis import HOW_TO_ADD, as_json, breaker_prognoses
 
 from . import schemas as s
 from .deps import ReaderDep, SessionDep, SettingsDep
@@ -23,13 +23,14 @@ ERRORS = {401: {"model": s.Message, "description": "no or unknown API key"},
 
 class OperationQuantiles(BaseModel):
     p05: float | None = Field(description="5 % quantile of the operations still to go; None beyond the horizon")
-    median: float
+    median: float | None = Field(description="median; None with status \"no trend\" (the 5 % quantile, the "
+                                              "earliest crossing, still stands)")
     p95: float | None = Field(description="95 % quantile; None beyond the horizon")
 
 
 class DateQuantiles(BaseModel):
     p05: s.UtcTime | None
-    median: s.UtcTime
+    median: s.UtcTime | None
     p95: s.UtcTime | None
 
 
@@ -57,6 +58,13 @@ class ParameterPrognosis(BaseModel):
     reason: str
     fan: dict = Field(description="projected level (p05, median, p95) over operations from the basis's "
                                   "first fit, and the observed compensated values: the page's fan chart")
+    limits: list[dict] = Field([], description="every bound of the limit: {direction, value [unit]} (both sides "
+                                               "of a two-sided limit)")
+    paths: dict[str, float] = Field({}, description="weight of each candidate degradation path (pseudo-BMA+)")
+    seasonal: bool = Field(False, description="the annual cycle was fitted (no temperature, a year of history)")
+    low_frequency_sd: float | None = Field(None, description="sd of the annual cycle the interval carries when "
+                                                             "under a year without temperature [unit]")
+    summary: str = Field("", description="the prognosis in words, with units (the breaker page's card)")
 
 
 class PrognosisResponse(BaseModel):
@@ -77,7 +85,9 @@ def _public(p) -> ParameterPrognosis:
         model=p.model, basis=p.basis, basis_operations=p.basis_operations, rate_per_day=p.rate_per_day,
         horizon_years=p.horizon_years, horizon_operations=p.horizon_operations,
         probability_within_horizon=p.probability_within_horizon,
-        reference_temperature_c=p.reference_temperature, status=p.status, reason=p.reason, fan=p.fan)
+        reference_temperature_c=p.reference_temperature, status=p.status, reason=p.reason, fan=p.fan,
+        limits=p.limits, paths=p.paths, seasonal=p.seasonal, low_frequency_sd=p.low_frequency_sd,
+        summary=as_json(p)["summary"])
 
 
 @router.get("/breakers/{name}/prognosis", response_model=PrognosisResponse, responses=ERRORS)
@@ -86,7 +96,8 @@ def prognosis(name: BreakerRef, session: SessionDep, settings: SettingsDep, _: R
 
     A breaker without a `[limits]` table answers an empty list and says how to add one. A
     quantile beyond the horizon (10 years at the breaker's own rate) is null: "no crossing
-    within 10 years", and so is the whole `operations_to_limit` when its median is.
+    within 10 years", and so is the whole `operations_to_limit` when its median is. "no trend" (the
+    slope's 90 % interval holds zero) has no median; its 5 % quantile, the earliest crossing, stays.
     """
     b = _breaker_ref(session, name)
     progs = breaker_prognoses(session, breaker=b, settings=settings.drift_settings)

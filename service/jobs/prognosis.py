@@ -9,6 +9,7 @@ from datetime import datetime
 
 from sqlalchemy import select
 
+from service.prognosis import words
 from service.storage import crud
 from service.storage.crud_alarms import operation_temperatures
 from service.storage.models import BreakerRow, DriftStateRow, PrognosisRow, utcnow
@@ -28,12 +29,22 @@ def limits_of(breaker: BreakerRow):
         return Limits()
 
 
+# The prognosis reads at most the last HISTORY_FITS good fits of a parameter, so its cost per fit
+# is bounded however long the breaker has run (the detector's own state is incremental). The
+# window holds every basis the calibration bench draws (the longest: 250 healthy fits before the
+# change point plus 375 after it, against PRE_FITS = 200 before it needed) and, at one opening a
+# day, 2.7 years: the annual cycle of a breaker without temperature twice over. A longer trend's
+# slope is known to its sd / sqrt(1000) already: older fits add nothing a planner would see.
+HISTORY_FITS = 1000
+
+
 def _history(session, breaker: BreakerRow, parameter: str):
-    """The parameter's good fits since the baseline reset: what the detector was fed."""
+    """The parameter's last ``HISTORY_FITS`` good fits since the baseline reset, oldest first:
+    the tail of what the detector was fed."""
     from service.alarms import FitObservation
 
     rows = crud.good_parameter_history(session, breaker_id=breaker.id, name=parameter,
-                                       since=breaker.baseline_reset_at)
+                                       since=breaker.baseline_reset_at, last=HISTORY_FITS)
     temps = operation_temperatures(session, {r.operation_id for r in rows})
     return [FitObservation(operation_id=r.operation_id, time=r.occurred_at, value=r.value,
                            ci95=(r.ci_low, r.ci_high) if r.ci_low is not None and r.ci_high is not None else None,
@@ -65,7 +76,7 @@ def breaker_prognoses(session, *, breaker: BreakerRow, settings, horizon_years: 
 def soonest_key(p) -> tuple:
     """Sort key: a crossing expected soonest first, then no crossing, then no trend."""
     q = p.operations_to_limit
-    return (0, q.median) if q is not None else ((1, 0.0) if p.status == "ok" else (2, 0.0))
+    return (0, q.median) if q is not None and q.median is not None else ((1, 0.0) if p.status == "ok" else (2, 0.0))
 
 
 def as_json(p) -> dict:
@@ -78,7 +89,9 @@ def as_json(p) -> dict:
         if isinstance(v, list):
             return [conv(x) for x in v]
         return v
-    return conv(asdict(p))
+    out = conv(asdict(p))
+    out["summary"], out["fleet"] = words.summary(out), words.fleet_text(out)
+    return out
 
 
 def store_prognoses(session, *, breaker_id: int, settings) -> list:
@@ -90,7 +103,7 @@ def store_prognoses(session, *, breaker_id: int, settings) -> list:
     for p in progs:
         row = stored.pop(p.parameter, None) or PrognosisRow(breaker_id=breaker_id, parameter=p.parameter)
         q = p.operations_to_limit
-        row.median_operations = float(q.median) if q is not None else None
+        row.median_operations = float(q.median) if q is not None and q.median is not None else None
         row.result, row.updated_at = as_json(p), now
         session.add(row)
     for row in stored.values():  # a limit that was removed from the breaker file
@@ -107,4 +120,16 @@ def soonest_by_breaker(session) -> dict[int, tuple[str, float | None, datetime]]
         have = out.get(r.breaker_id)
         if have is None or (r.median_operations is not None and (have[1] is None or r.median_operations < have[1])):
             out[r.breaker_id] = (r.parameter, r.median_operations, r.updated_at)
+    return out
+
+
+def soonest_texts(session) -> dict[int, str]:
+    """breaker id -> the fleet column's words for the soonest stored prognosis (the one
+    ``soonest_by_breaker`` picks)."""
+    soonest = soonest_by_breaker(session)
+    out = {}
+    for r in session.scalars(select(PrognosisRow)):
+        pick = soonest.get(r.breaker_id)
+        if pick is not None and pick[0] == r.parameter and r.result:
+            out[r.breaker_id] = r.result.get("fleet") or words.fleet_text(r.result)
     return out

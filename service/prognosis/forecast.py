@@ -18,19 +18,21 @@ calibration: docs/prognosis.md.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from datetime import datetime, timedelta
 from typing import Sequence
 
 import numpy as np
-from scipy import stats
+from scipy import special, stats
 
 from service.alarms.observation import FitObservation
 from service.alarms.state import DriftState
 from service.breaker_limits import ParameterLimit
-from service.prognosis.trend import Trend, fit_trend
+from service.prognosis.paths import FLAT_PRECISION, SHAPES, fit_path, lfo_log_density, shape_column
+from service.prognosis.averaging import pseudo_bma_plus_weights
 
-MODEL = "linear degradation path, Bayesian updating (Gebraeel et al. 2005)"
+MODEL = ("linear and power-law degradation paths, Bayesian updating (Gebraeel et al. 2005), "
+         "stacked by their one-step-ahead predictions (Yao et al. 2018)")
 QUANTILES = (0.05, 0.5, 0.95)
 # Fewest fits a trend is drawn through: with two free coefficients, three residual degrees of
 # freedom of its own besides the baseline's prior.
@@ -43,6 +45,9 @@ DAYS_PER_YEAR = 365.25
 # probability 6e-5, so a basis of 1 000 fits loses 0.06 good ones on average.
 REJECT_Z = 4.0
 FAN_POINTS = 41
+# Fits before the change point that anchor the path's start (a drift from the healthy level):
+# the baseline window's size, enough to fix that level to sd/sqrt(200).
+PRE_FITS = 200
 
 
 @dataclass(frozen=True)
@@ -93,6 +98,10 @@ class Prognosis:
     fan: dict = field(default_factory=dict)
     status: str = "ok"
     reason: str = ""
+    limits: list = field(default_factory=list)
+    paths: dict = field(default_factory=dict)
+    seasonal: bool = False
+    low_frequency_sd: float | None = None
 
 
 def compensated(state: DriftState, history: Sequence[FitObservation]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -153,59 +162,284 @@ def prognose(state: DriftState, history: Sequence[FitObservation], limit: Parame
                          reason=f"learning the baseline ({len(state.collected)} fits so far)")
     model = state.model
     bounds = limit.bounds(model.centre)
+    all_limits = [{"direction": d, "value": v} for d, v in bounds]
     history = list(history)
     start, basis = basis_start(state, len(history))
-    chosen = history[start:]
-    if len(chosen) < MIN_BASIS:
+    if len(history) - start < MIN_BASIS:
         return Prognosis(name, bounds[0][1], bounds[0][0], text, baseline=model.centre, status="no trend",
-                         reason=f"{len(chosen)} fits since the {basis}; a trend needs {MIN_BASIS}")
-    y_all, w_all, dt_all = compensated(state, history)
-    n, y, w, dt = np.arange(start, len(history), dtype=float), y_all[start:], w_all[start:], dt_all[start:]
-
-    def draw(n, y, w, dt):
-        return fit_trend(n, y, w, prior_sd=model.sd, prior_dof=model.dof, common=dt, common_var=model.slope_var)
-
-    trend = draw(n, y, w, dt)
-    # Gross fit errors (about 1 % of fits, 5-30 % off) would pull a least-squares line: drop the
-    # fits beyond REJECT_Z posterior sds and draw it again.
-    keep = np.abs(y - trend.level(n)[0]) * np.sqrt(w) <= REJECT_Z * trend.sd
-    if not keep.all() and keep.sum() >= MIN_BASIS:
-        n, y, w, dt = n[keep], y[keep], w[keep], dt[keep]
-        trend = draw(n, y, w, dt)
-    direction, bound = bounds[0] if len(bounds) == 1 else bounds[0 if trend.b < 0 else 1]
+                         limits=all_limits,
+                         reason=f"{len(history) - start} fits since the {basis}; a trend needs {MIN_BASIS}")
+    fit = fit_paths(state, history, start)
+    mix = Mixture(fit.candidates, fit.weights)
+    p_falling = mix.probability_falling()
+    direction, bound = bounds[0] if len(bounds) == 1 else bounds[0 if p_falling >= 0.5 else 1]
     n_now = float(len(history) - 1)
     rate = operation_rate(history)
     horizon = rate * DAYS_PER_YEAR * horizon_years if rate else float(ENDURANCE_OPERATIONS)
-    ops = [trend.crossing_quantile(bound, direction, p, n_now=n_now) - n_now for p in QUANTILES]
+    level_now = float(mix.level_quantiles(np.array([n_now]), (0.5,))[0][0])
+    past = level_now < bound if direction == "falling" else level_now > bound
+    common = dict(baseline=model.centre, current=level_now, basis=basis, basis_operations=fit.basis_operations,
+                  rate_per_day=rate, horizon_operations=horizon, horizon_years=horizon_years if rate else None,
+                  reference_temperature=model.t_mean, limits=all_limits,
+                  paths={f"{c.variant} power {c.shape:g}": round(float(w), 4) for c, w in zip(fit.candidates, fit.weights)},
+                  seasonal=fit.seasonal, low_frequency_sd=fit.low_frequency_sd)
+    ops = [mix.crossing_quantile(bound, direction, p, n_now=n_now, horizon=horizon) for p in QUANTILES]
+    p_within = float(mix.crossing_probability(bound, direction, np.array([n_now + horizon]))[0])
+    years = f"{horizon_years:g} years" if rate else f"{ENDURANCE_OPERATIONS:,} operations"
+    # The averaged drift's 90 % interval holds zero: not a due date. Say so rather than a median.
+    if not past and 0.05 < p_falling < 0.95:
+        # A slope not credibly different from zero is not a due date: say so rather than a median.
+        # The earliest crossing (5 %) still stands: a slope that may be zero may also be steep.
+        early = ops[0] if ops[0] <= horizon else None
+        return Prognosis(name, bound, direction, text, **common, probability_within_horizon=p_within,
+                         operations_to_limit=Quantiles(early, None, None) if early is not None else None,
+                         date_to_limit=Quantiles(history[-1].time + timedelta(days=early / rate), None, None)
+                         if early is not None and rate else None,
+                         fan=fan(mix, fit, n_now, [ops[0], math.inf, math.inf], horizon), status="no trend",
+                         reason=f"no trend: the slope's 90 % interval holds zero; not expected to reach "
+                                f"its limit within {years} at this rate")
     within = [x if x <= horizon else None for x in ops]
     last_time = history[-1].time
     dates = [last_time + timedelta(days=x / rate) if (x is not None and rate) else None for x in within]
-    p_within = float(trend.crossing_probability(bound, direction, n_now + horizon))
-    level_now = float(trend.level(n_now)[0])
-    past = level_now < bound if direction == "falling" else level_now > bound
     return Prognosis(
-        name, bound, direction, text, baseline=model.centre, current=level_now,
+        name, bound, direction, text, **common,
         operations_to_limit=Quantiles(*within) if within[1] is not None else None,
         date_to_limit=Quantiles(*dates) if dates[1] is not None else None,
-        basis=basis, basis_operations=len(n), rate_per_day=rate,
-        horizon_operations=horizon, horizon_years=horizon_years if rate else None,
-        probability_within_horizon=p_within,
-        reference_temperature=model.t_mean, fan=fan(trend, n, y, n_now, ops, horizon),
+        probability_within_horizon=p_within, fan=fan(mix, fit, n_now, ops, horizon),
         status="crossed" if past else "ok",
-        reason=f"the trend is past the limit now ({level_now:.4g} against {bound:.4g}): service is due"
-        if past else "")
+        reason="the trend is past the limit now: service is due" if past else "")
 
 
-def fan(trend: Trend, n: np.ndarray, y: np.ndarray, n_now: float, ops: list[float],
-        horizon: float) -> dict:
+@dataclass(frozen=True)
+class PathsFit:
+    """The candidate paths of one basis and their stacking weights.
+
+    n, y : the basis's operation counts and compensated values kept (gross errors dropped)
+    seasonal : the annual harmonics were fitted (no temperature, a year of history)
+    low_frequency_sd : sd of the residual's slow component carried by the interval [unit], or None
+    """
+
+    candidates: list
+    weights: np.ndarray
+    n: np.ndarray
+    y: np.ndarray
+    basis_operations: int
+    seasonal: bool
+    low_frequency_sd: float | None
+
+
+def _day_of_year(times) -> np.ndarray:
+    return np.array([t.timetuple().tm_yday - 1 + (t.hour + t.minute / 60.0) / 24.0 for t in times])
+
+
+def fit_paths(state: DriftState, history: list, start: int) -> PathsFit:
+    """Fit every candidate path to the basis (``history[start:]``) and weight them by stacking.
+
+    Candidates: each power-law shape (paths.SHAPES), either continuing from the level before
+    the change point ("anchored": a drift that starts from the healthy baseline, which fixes
+    the path's start with the pre-change fits) or with a level of its own after it ("free": a
+    step, then a drift). Without a temperature channel and with a year of history since the
+    reset, the annual cycle (cos, sin of the day of year, centred on the baseline window so that
+    the level is the one at the baseline's season) is fitted beside the path. With less than a
+    year, the residual's slow component (an AR(1) from its autocorrelation) enters the errors'
+    covariance and the level's variance instead of being read as trend.
+    """
+    model = state.model
+    y_all, w_all, dt_all = compensated(state, history)
+    n_all = np.arange(len(history), dtype=float)
+    span_days = (history[-1].time - history[0].time).total_seconds() / 86400.0
+    seasonal = not model.compensated and span_days >= DAYS_PER_YEAR
+    lo = 0 if seasonal else max(0, start - PRE_FITS)
+    n, y, w, dt = n_all[lo:], y_all[lo:], w_all[lo:], dt_all[lo:]
+    harmonics, harmonic_precision = [], 0.0
+    if not model.compensated:
+        angle = 2.0 * np.pi * _day_of_year([o.time for o in history]) / DAYS_PER_YEAR
+        ids = {w_[0] for w_ in state.window}
+        ref = np.array([o.operation_id in ids for o in history]) if ids else np.arange(len(history)) < model.n
+        if not ref.any():
+            ref = np.arange(len(history)) < model.n
+        harmonics = [(col - col[ref].mean())[lo:] for col in (np.cos(angle), np.sin(angle))]
+    common_var = model.slope_var if model.compensated else 0.0
+    d0 = float(start) - 1.0  # d = 1 at the basis's first fit
+    scale_ops = max(float(len(history) - start), 1.0)
+    in_basis = n >= start
+    variants = ("free", "anchored") if (~in_basis).any() else ("free",)
+
+    def design(k, variant, with_harmonics=True):
+        cols = [np.ones_like(n), shape_column(n, d0, scale_ops, k) * in_basis]
+        prec = [0.0, 0.0]
+        if with_harmonics and harmonics and (seasonal or harmonic_precision > 0):
+            cols += harmonics
+            prec += [0.0 if seasonal else harmonic_precision] * 2
+        if variant == "free" and (~in_basis).any():
+            cols.append((~in_basis).astype(float))
+            prec.append(0.0)
+        if common_var > 0:
+            cols.append(dt)
+            prec.append(model.sd ** 2 / common_var)
+        return np.stack(cols, axis=1), np.array(prec)
+
+    def fit(k, variant, sel, with_harmonics=True):
+        x, prec = design(k, variant, with_harmonics)
+        return fit_path(x[sel], y[sel], w[sel], prec, prior_sd=model.sd, prior_dof=model.dof, shape=k,
+                        scale_ops=scale_ops, d0=d0)
+
+    keep = np.ones(len(n), dtype=bool)
+    first = fit(1.0, "free", keep, seasonal)
+    resid = y - design(1.0, "free", seasonal)[0] @ first.beta
+    # Gross fit errors (about 1 % of fits, 5-30 % off) would pull a least-squares line: drop the
+    # fits beyond REJECT_Z posterior sds and draw it again.
+    keep = np.abs(resid) * np.sqrt(w) <= REJECT_Z * first.sd
+    if (in_basis & keep).sum() < MIN_BASIS:
+        keep = np.ones(len(n), dtype=bool)
+    lf_sd = None
+    if not model.compensated and not seasonal and low_frequency(resid[keep]) is not None:
+        # Less than a year without temperature, and the residual's autocorrelation shows a slow
+        # component: the annual cycle cannot be fitted, but its size can be bounded. Each
+        # harmonic's coefficient gets a N(0, v) prior (a cycle of amplitude A has variance
+        # A^2 / 2 = v), v by restricted maximum likelihood (Patterson & Thompson 1971), and the
+        # level is marginalised over the part of the cycle the history cannot pin down.
+        x, _ = design(1.0, "free", False)
+        v = cycle_variance(x[keep], np.stack(harmonics, axis=1)[keep], y[keep], w[keep], model.sd ** 2)
+        harmonic_precision, lf_sd = model.sd ** 2 / v, math.sqrt(v)
+    cands, lps = [], []
+    first_pred = int(np.flatnonzero(in_basis[keep])[0]) + MIN_BASIS
+    for variant in variants:
+        for k in SHAPES:
+            c = fit(k, variant, keep)
+            cands.append(replace(c, variant=variant))
+            x, prec = design(k, variant)
+            prec = np.where(prec > 0, prec, FLAT_PRECISION)
+            lps.append(lfo_log_density(np.ascontiguousarray(x[keep]), y[keep], w[keep], prec, model.sd ** 2,
+                                       float(model.dof), first_pred))
+    weights = pseudo_bma_plus_weights(np.array(lps))
+    sel = keep & in_basis
+    return PathsFit(cands, weights, n[sel], y[sel], int(sel.sum()), seasonal, lf_sd)
+
+
+def low_frequency(resid: np.ndarray) -> tuple[float, float, float] | None:
+    """(variance [unit^2] and AR(1) coefficient per operation [-] of the residual's slow
+    component, the residual's variance [unit^2]), from its autocovariances at lags 1 and 2
+    (white noise plus an AR(1): gamma(h) = v phi^h for h >= 1); None when the lag-1
+    autocorrelation is not significant at 5 % (one-sided, 1.645 / sqrt(m))."""
+    m = len(resid)
+    if m < 10:
+        return None
+    r = resid - resid.mean()
+    g0 = float(r @ r) / m
+    g1 = float(r[1:] @ r[:-1]) / m
+    g2 = float(r[2:] @ r[:-2]) / m
+    if g0 <= 0 or g1 / g0 <= 1.645 / math.sqrt(m):
+        return None
+    phi = min(max(g2 / g1, g1 / g0), 0.99) if g2 > 0 else g1 / g0
+    return min(g1 / phi, g0), phi, g0
+
+
+def cycle_variance(x: np.ndarray, h: np.ndarray, y: np.ndarray, w: np.ndarray, s2: float) -> float:
+    """The REML estimate of v in y = X b + H c + e, c ~ N(0, v I), e ~ N(0, s2 / w), b flat
+    [unit^2], on a log grid from (0.1 s)^2 to (30 s)^2: -2 log L_R(v) = S(v) + log|A(v)| +
+    k log v, with A(v) = [X H]' W [X H] / s2 + diag(0, I / v) and S(v) the penalised weighted
+    sum of squares at its minimum."""
+    z = np.hstack([x, h])
+    zw = z.T * (w / s2)
+    a0, r0 = zw @ z, zw @ y
+    kx, kh = x.shape[1], h.shape[1]
+    best, best_v = math.inf, s2
+    for v in s2 * np.geomspace(0.01, 900.0, 25):
+        a = a0.copy()
+        a[kx:, kx:] += np.eye(kh) / v
+        try:
+            beta = np.linalg.solve(a, r0)
+        except np.linalg.LinAlgError:
+            continue
+        r = y - z @ beta
+        pen = float((w * r * r).sum() / s2 + (beta[kx:] ** 2).sum() / v)
+        val = pen + float(np.linalg.slogdet(a)[1]) + kh * math.log(v)
+        if val < best:
+            best, best_v = val, float(v)
+    return best_v
+
+
+class Mixture:
+    """The stacked average of candidate paths: a mixture of Student t levels."""
+
+    def __init__(self, candidates, weights):
+        self.c = [c for c, w in zip(candidates, weights) if w > 1e-6]
+        self.w = np.array([w for w in weights if w > 1e-6])
+        self.w = self.w / self.w.sum()
+
+    def probability_falling(self) -> float:
+        """P(the drift coefficient b < 0) under the average [-]: with 0.05-0.95 its 90 % interval
+        holds zero, "no trend"."""
+        return float(sum(w * special.stdtr(c.dof, -c.beta[1] / math.sqrt(max(c.cov[1, 1], 1e-300)))
+                         for c, w in zip(self.c, self.w)))
+
+    def crossing_probability(self, limit: float, direction: str, n: np.ndarray) -> np.ndarray:
+        """P(the level has crossed ``limit`` by operation ``n``) [-] (Gebraeel et al. 2005, eq. 12,
+        averaged over the candidates with their weights)."""
+        sign = 1.0 if direction == "falling" else -1.0
+        out = np.zeros(len(n))
+        for c, w in zip(self.c, self.w):
+            mean, scale = c.level(n)
+            z = sign * (limit - mean) / np.maximum(scale, 1e-300)
+            out += w * special.stdtr(c.dof, z)
+        return out
+
+    def crossing_quantile(self, limit: float, direction: str, p: float, *, n_now: float,
+                          horizon: float) -> float:
+        """Operations from now until the level has crossed ``limit`` with probability ``p``;
+        0 when it has already, ``inf`` when not within 2x the horizon."""
+        if self.crossing_probability(limit, direction, np.array([n_now]))[0] >= p:
+            return 0.0
+        ahead = np.unique(np.concatenate([np.arange(1.0, 200.0), np.geomspace(200.0, 2.0 * horizon + 200.0, 400)]))
+        f = self.crossing_probability(limit, direction, n_now + ahead)
+        hit = np.flatnonzero(f >= p)
+        if not hit.size:
+            return math.inf
+        j = hit[0]
+        lo, hi = (ahead[j - 1] if j > 0 else 0.0), ahead[j]
+        for _ in range(40):  # bisection to a hundredth of an operation
+            if hi - lo < 0.01:
+                break
+            mid = 0.5 * (lo + hi)
+            if self.crossing_probability(limit, direction, np.array([n_now + mid]))[0] >= p:
+                hi = mid
+            else:
+                lo = mid
+        return float(hi)
+
+    def level_quantiles(self, n: np.ndarray, ps) -> list[np.ndarray]:
+        """The level's p-quantiles after operations ``n`` [unit], by bisection on the mixture cdf."""
+        ms = [c.level(n) for c in self.c]
+        mean = np.array([m for m, _ in ms])  # [K, G]
+        scale = np.maximum(np.array([s for _, s in ms]), 1e-300)
+        dof, w = np.array([c.dof for c in self.c])[:, None], self.w[:, None]
+        # Student t with >= 3 dof: a 5-95 % quantile lies within 12 scales of some component's mean.
+        lo, hi = (mean - 12 * scale).min(axis=0) - 1e-9, (mean + 12 * scale).max(axis=0) + 1e-9
+        out = []
+        for p in ps:
+            a, b = lo.copy(), hi.copy()
+            for _ in range(36):  # 24 scales / 2^36: far below a fit's resolution
+                mid = 0.5 * (a + b)
+                below = (w * special.stdtr(dof, (mid - mean) / scale)).sum(axis=0) < p
+                a, b = np.where(below, mid, a), np.where(below, b, mid)
+            out.append(0.5 * (a + b))
+        return out
+
+
+def fan(mix: Mixture, fit: PathsFit, n_now: float, ops: list[float], horizon: float) -> dict:
     """The projected level's 5/50/95 % band from the basis's start to past the 95 % crossing
     (or the horizon), operation counts from the basis's first fit [operations]."""
-    ahead = ops[2] if math.isfinite(ops[2]) else horizon
-    ahead = min(max(ahead * 1.1, 0.25 * (n_now - n[0]) + 1.0), horizon)
+    n = fit.n
+    span = n_now - n[0] + 1.0
+    # Past the 95 % crossing; without one (no trend, or beyond the horizon), as far ahead as the
+    # basis is long (or to the earliest crossing): further out the band only shows the
+    # curvature's uncertainty, not the data.
+    ahead = ops[2] if math.isfinite(ops[2]) else (max(ops[0], span) if math.isfinite(ops[0]) else span)
+    ahead = min(max(ahead * 1.1, 0.25 * span), horizon)
     grid = np.linspace(n[0], n_now + ahead, FAN_POINTS)
-    mean, scale = trend.level(grid)
-    t95 = float(stats.t.ppf(0.95, trend.dof))
+    p05, median, p95 = mix.level_quantiles(grid, QUANTILES)
     r = lambda a: [round(float(v), 6) for v in a]  # noqa: E731
-    return {"operations": r(grid - n[0]), "median": r(mean), "p05": r(mean - t95 * scale),
-            "p95": r(mean + t95 * scale), "now": n_now - n[0],
-            "observed": {"operations": r(n - n[0]), "value": r(y)}}
+    return {"operations": r(grid - n[0]), "median": r(median), "p05": r(p05),
+            "p95": r(p95), "now": n_now - n[0],
+            "observed": {"operations": r(n - n[0]), "value": r(fit.y)}}

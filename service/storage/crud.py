@@ -267,13 +267,17 @@ def parameter_trend(session: Session, *, breaker_id: int, name: str, since: date
 
 
 def good_parameter_history(session: Session, *, breaker_id: int, name: str,
-                           since: datetime | None = None) -> list[ParameterValueRow]:
-    """Identifiable values of a parameter, oldest first, for the drift detector."""
+                           since: datetime | None = None, last: int | None = None) -> list[ParameterValueRow]:
+    """Identifiable values of a parameter, oldest first, for the drift detector; with ``last``,
+    only the newest ``last`` of them (still oldest first)."""
     q = select(ParameterValueRow).where(ParameterValueRow.breaker_id == breaker_id,
                                         ParameterValueRow.name == name, ParameterValueRow.identifiable.is_(True),
                                         ParameterValueRow.operation_id.not_in(_suspect_ids(breaker_id)))
     if since is not None:
         q = q.where(ParameterValueRow.occurred_at >= since)
+    if last is not None:
+        newest = q.order_by(ParameterValueRow.occurred_at.desc(), ParameterValueRow.id.desc()).limit(last)
+        return list(reversed(list(session.scalars(newest))))
     return list(session.scalars(q.order_by(ParameterValueRow.occurred_at, ParameterValueRow.id)))
 
 

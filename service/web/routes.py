@@ -121,9 +121,10 @@ def daq_states(session, settings) -> dict[int, dict]:
 
 
 def _fleet(session, settings) -> list[dict]:
-    from service.jobs.prognosis import soonest_by_breaker
+    from service.jobs.prognosis import soonest_by_breaker, soonest_texts
 
     daq, now, soonest = daq_states(session, settings), utcnow(), soonest_by_breaker(session)
+    soonest_words = soonest_texts(session)
     rows = []
     for b in crud.list_breakers(session):
         active = crud.list_alarms(session, state="active", breaker_id=b.id)
@@ -140,7 +141,7 @@ def _fleet(session, settings) -> list[dict]:
         rows.append({"breaker": b, "status": breaker_status(session, b.id, settings, alarms),
                      "last": crud_web.last_operation_times(session, breaker_id=b.id), "latest": latest,
                      "alarms": alarms, "shelved": [a for a in active if a not in alarms], "daq": daq.get(b.id),
-                     "soonest": soonest.get(b.id)})
+                     "soonest": soonest.get(b.id), "soonest_text": soonest_words.get(b.id)})
     # the soonest expected crossing of a maintenance limit first (a stable sort keeps the rest's order)
     return sorted(rows, key=lambda r: (r["soonest"] is None or r["soonest"][1] is None,
                                        r["soonest"][1] if r["soonest"] and r["soonest"][1] is not None else 0.0))

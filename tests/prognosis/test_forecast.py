@@ -41,11 +41,16 @@ def test_learning_baseline_gives_no_trend_with_reason():
     assert p.status == "no trend" and "learning the baseline" in p.reason and p.operations_to_limit is None
 
 
-def test_healthy_breaker_has_no_crossing_within_ten_years_and_a_rate():
+def test_healthy_breaker_says_no_trend_and_no_crossing_within_ten_years():
+    """A flat history: the slope's 90 % interval holds zero, so "no trend", no median crossing."""
     obs = history(300)
     p = prognose(detector(obs), obs, LIMIT)
-    assert p.status == "ok" and p.basis == "baseline reset" and p.operations_to_limit is None
-    assert p.date_to_limit is None and abs(p.rate_per_day - 1.0) < 1e-9
+    assert p.status == "no trend" and "not expected to reach its limit within 10 years" in p.reason
+    assert p.basis == "baseline reset"
+    assert p.operations_to_limit is None or (p.operations_to_limit.median is None
+                                             and p.operations_to_limit.p95 is None)
+    assert p.date_to_limit is None or p.date_to_limit.median is None
+    assert abs(p.rate_per_day - 1.0) < 1e-9
     assert p.horizon_operations == 3652.5 and p.probability_within_horizon < 0.5
 
 

@@ -53,9 +53,7 @@ def run(obs, upto: int):
     return state, prognose(state, obs[:upto], LIMIT)
 
 
-@pytest.mark.parametrize("seed", [31, 32, pytest.param(33, marks=pytest.mark.xfail(
-    strict=True, reason="measured: the interval holds (30.5-76.5 around 33) but the median at halfway is "
-                        "45.5, 38 % late; the acceptance's 35 % is not met on this year"))])
+@pytest.mark.parametrize("seed", [31, 32, 33])
 def test_leaking_breaker_interval_holds_the_crossing_and_median_within_35_percent(seed):
     obs, factor = year(seed, leak=True)
     crossing_op = LEAK_DAY + int(np.ceil(0.25 / LEAK_PER_OP)) + 1  # first opening 25 % down (true)
@@ -75,4 +73,4 @@ def test_healthy_breaker_shows_no_crossing_within_300_operations(seed):
     for at in (120, 240, 365):
         _, p = run(obs, at)
         q = p.operations_to_limit
-        assert q is None or q.median > 300, (at, q)
+        assert q is None or q.median is None or q.median > 300, (at, q)

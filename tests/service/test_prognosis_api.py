@@ -29,9 +29,11 @@ def test_leaking_breaker_gets_a_prognosis_with_quantiles(env):
     assert 3 <= q["median"] <= 14  # the truth is about 8 more openings
     assert do["date_to_limit"] is None and do["rate_per_day"] is None  # a minute of operations: no rate
     assert len(do["fan"]["median"]) == len(do["fan"]["operations"]) > 10
-    # BO is flat: its median crossing is beyond the horizon
+    # BO is flat: "no trend", no median crossing, and the words say so with units
     bo = next(p for p in body["parameters"] if p["parameter"] == "BO")
-    assert bo["operations_to_limit"] is None and bo["status"] == "ok"
+    assert bo["status"] == "no trend" and (bo["operations_to_limit"] is None or bo["operations_to_limit"]["median"] is None)
+    assert bo["summary"].startswith("Opening spring factor BO: no trend.") and "s⁻²" in bo["summary"]
+    assert do["summary"].startswith("Buffer damping DO reaches its limit in about ") and "s⁻¹" in do["summary"]
     # ... and the worker stored the same median as the fits landed
     with env.Session() as s:
         rows = {r.parameter: r for r in s.scalars(select(PrognosisRow))}
@@ -70,3 +72,26 @@ def test_prognosis_is_in_the_openapi_with_its_errors(env):
     spec = env.client.get("/openapi.json").json()
     op = spec["paths"]["/api/v1/breakers/{name}/prognosis"]["get"]
     assert {"200", "401", "403", "404"} <= set(op["responses"])
+
+
+def test_the_prognosis_reads_a_bounded_window_of_the_newest_fits(env, monkeypatch):
+    """The worker's prognosis cost per fit is bounded: it reads at most HISTORY_FITS fits, the
+    newest, oldest first (service/jobs/prognosis.py)."""
+    from service.jobs import prognosis as job
+
+    monkeypatch.setattr(job, "HISTORY_FITS", 20)
+    store_leak(env.Session, env.settings.drift_settings, t0=datetime.now(timezone.utc) - timedelta(hours=2),
+               step=timedelta(seconds=1))
+    with env.Session() as s:
+        b = s.scalar(select(BreakerRow))
+        hist = job._history(s, b, "DO")
+        assert len(hist) == 20
+        times = [o.time for o in hist]
+        assert times == sorted(times)
+        from service.storage import crud
+
+        everything = crud.good_parameter_history(s, breaker_id=b.id, name="DO", since=b.baseline_reset_at)
+        assert len(everything) == 32 and [o.operation_id for o in hist] == [r.operation_id for r in everything[-20:]]
+        (do,) = [p for p in job.breaker_prognoses(s, breaker=b, settings=env.settings.drift_settings)
+                 if p.parameter == "DO"]
+        assert do.basis_operations <= 20 and do.status in ("ok", "crossed")

@@ -148,3 +148,45 @@ def test_operation_page_rows_have_units(demo, browser):
         for cells in rows:
             if any(quantities(c) for c in cells[1:]):
                 assert cells[-1] and not NUMBER.fullmatch(cells[-1]), f"no unit in the last column: {cells}"
+
+
+PROGNOSIS_UNIT = re.compile(r"\s?(?:s⁻²|s⁻¹|%|openings?|closings?|years|fits)")
+DATE = re.compile(r"\b\d{4}-\d\d-\d\d\b")
+
+
+def prognosis_numbers_without_unit(text: str) -> list[str]:
+    """Numbers in a prognosis text not followed by a unit (a range's first end takes the unit
+    of its second: "5–7 openings"); dates are not quantities."""
+    text = DATE.sub(" ", text)
+    missing = []
+    for m in re.finditer(r"[−+-]?\d[\d,]*(?:\.\d+)?", text):
+        rest = text[m.end():]
+        rest = re.sub(r"^\s?–\s?[\d,]+(?:\.\d+)?", "", rest)
+        if not PROGNOSIS_UNIT.match(rest):
+            missing.append(f"{m.group()!r} in {text!r}")
+    return missing
+
+
+def test_prognosis_card_and_fleet_say_it_in_words_with_units(demo, browser):
+    """Issue 37: the demo's BO is flat, and its card says "no trend" (not a due date); every
+    number of the prognosis card and the fleet's column has its unit; openings are whole."""
+    with reader_page(browser, demo, "/breakers/1") as page:
+        page.wait_for_selector('[data-prognosis-param="BO"] figcaption', timeout=60000)
+        captions = dict(page.eval_on_selector_all("#prognosis-charts figure", """fs => fs.map(f =>
+            [f.getAttribute('data-prognosis-param'), f.querySelector('figcaption').innerText.trim()])"""))
+        bo = captions["BO"]
+        assert bo.startswith("Opening spring factor BO: no trend."), bo
+        assert "not expected to reach its limit within" in bo and "% below and" in bo and "% above its baseline" in bo
+        do = captions["DO"]
+        assert do.startswith("Buffer damping DO"), do
+        missing = [x for text in captions.values() for x in prognosis_numbers_without_unit(text)]
+        assert not missing, "prognosis numbers without a unit:\n" + "\n".join(missing)
+        for text in captions.values():
+            assert not re.search(r"\d\.\d+ openings", text), text  # whole openings
+            assert "min_change" not in text and "max_change" not in text, text
+        legends = " ".join(page.locator("#prognosis-charts .u-legend").all_inner_texts())
+        assert legends and "--" not in legends, legends
+    with reader_page(browser, demo, "/", ready=False) as page:
+        cell = page.locator("#fleet-rows tr").first.locator(".soonest-cell").inner_text().strip()
+        assert cell.startswith(("buffer damping DO", "opening spring factor BO")), cell
+        assert not prognosis_numbers_without_unit(cell), cell

@@ -32,15 +32,22 @@ def test_breaker_page_draws_the_fan_chart_and_the_fleet_lists_the_soonest_limit(
     try:
         page = sign_in(context, live, "reader", log)
         fleet = page.locator("#fleet-rows tr").first.locator(".soonest-cell").inner_text()
-        assert "DO in ~" in fleet and "openings" in fleet
+        assert fleet.startswith("buffer damping DO: limit in about ") and "openings" in fleet, fleet
         page.goto(f"{live.base}/breakers/1")
         page.wait_for_selector('[data-prognosis-param="DO"] canvas', timeout=30000)
         caption = page.locator('[data-prognosis-param="DO"] figcaption').inner_text()
-        assert caption.startswith("DO to min_change = -0.25") and "openings (90 %:" in caption
-        assert "trend since the change point" in caption
+        assert caption.startswith("Buffer damping DO reaches its limit in about "), caption
+        assert "openings" in caption and "90 % interval" in caption and "25 % below its baseline of" in caption
+        assert "Trend since the change point" in caption
         assert canvas_ink(page, '[data-prognosis-param="DO"]') > 1000  # band, median, limit line, fits
         bo = page.locator('[data-prognosis-param="BO"] figcaption').inner_text()
-        assert "no crossing within" in bo
+        assert "no trend" in bo and "not expected to reach its limit within" in bo, bo
+        # both limits of BO's two-sided limit are drawn, and the legend never reads "--"
+        page.wait_for_selector('[data-prognosis-param="BO"] canvas', timeout=30000)
+        legend = page.locator('[data-prognosis-param="BO"] .u-legend').inner_text()
+        assert "lower limit" in legend and "upper limit" in legend and "s⁻²" in legend, legend
+        legends = " ".join(page.locator("#prognosis-charts .u-legend").all_inner_texts())
+        assert "--" not in legends, legends
         page.locator("#breaker-prognosis").scroll_into_view_if_needed()
         screenshot(page, "breaker-prognosis")
         assert log.errors == [], log.errors

@@ -3,22 +3,15 @@
 (function () {
   "use strict";
 
-  function fmt(x) { return x === null || x === undefined ? "none" : (Math.round(x * 10) / 10).toLocaleString("en"); }
+  // The card's words come with the data (service/prognosis/words.py), so the page, the API and the
+  // fleet say the same thing.
+  var UNIT = { DO: "s⁻¹", BO: "s⁻²", AO: "s⁻²", EO: "s⁻²", AC: "s⁻²", CC: "s⁻²" };
 
-  function summary(p) {
-    if (p.status === "crossed") { return p.parameter + " past " + p.limit_text + " (" + fmt(p.limit) + "): " + p.reason; }
-    if (p.status !== "ok") { return p.parameter + ": no prognosis (" + p.reason + ")"; }
-    var q = p.operations_to_limit;
-    var head = p.parameter + " to " + p.limit_text + " (" + fmt(p.limit) + "): ";
-    if (!q) {
-      return head + "no crossing within " + (p.horizon_years ? p.horizon_years + " years" : fmt(p.horizon_operations) + " operations") +
-        " (P = " + (100 * (p.probability_within_horizon || 0)).toFixed(1) + " %)";
-    }
-    var d = p.date_to_limit;
-    var when = d ? ", about " + d.median.slice(0, 10) + " (" + (d.p05 ? d.p05.slice(0, 10) : "?") + " – " +
-      (d.p95 ? d.p95.slice(0, 10) : "beyond the horizon") + ")" : "";
-    return head + fmt(q.median) + " openings (90 %: " + fmt(q.p05) + " – " + (q.p95 === null ? "beyond the horizon" : fmt(q.p95)) +
-      ")" + when + "; trend since the " + p.basis + ", " + p.basis_operations + " fits";
+  function val(x, par) {
+    if (x === null || x === undefined || !isFinite(x)) { return ""; }
+    var a = Math.abs(x), digits = a >= 1000 || a === 0 ? 0 : Math.max(0, 2 - Math.floor(Math.log10(a)));
+    return x.toLocaleString("en", { minimumFractionDigits: digits, maximumFractionDigits: digits }).replace("-", "−") +
+      (UNIT[par] ? " " + UNIT[par] : "");
   }
 
   function chart(box, p) {
@@ -31,18 +24,30 @@
       var m = {}; src.forEach(function (x, i) { m[x] = vals[i]; });
       return xs.map(function (x) { return m[x] === undefined ? null : m[x]; });
     }
-    var data = [xs, on(f.observed.operations, f.observed.value), on(f.operations, f.p05),
-      on(f.operations, f.median), on(f.operations, f.p95), xs.map(function () { return p.limit; })];
+    var par = p.parameter, obs = f.observed.value, last = obs.length ? obs[obs.length - 1] : null;
+    var data = [xs, on(f.observed.operations, obs), on(f.operations, f.p05),
+      on(f.operations, f.median), on(f.operations, f.p95)];
+    var series = [{},
+      { label: "observed (latest " + val(last, par) + ")", stroke: "#555", width: 0, points: { show: true, size: 4 } },
+      { label: "5 %", stroke: "#7aa6d6", dash: [4, 4], spanGaps: true },
+      { label: "median (now " + val(p.current, par) + ")", stroke: "#1f5fa8", width: 2, spanGaps: true },
+      { label: "95 %", stroke: "#7aa6d6", dash: [4, 4], spanGaps: true }];
+    // every limit of the breaker file: both sides of a two-sided limit
+    var limits = (p.limits && p.limits.length) ? p.limits : [{ direction: p.direction, value: p.limit }];
+    limits.forEach(function (l) {
+      if (l.value === null || l.value === undefined) { return; }
+      data.push(xs.map(function () { return l.value; }));
+      series.push({ label: (l.direction === "rising" ? "upper" : "lower") + " limit " + val(l.value, par),
+        stroke: "#c0392b", width: 2 });
+    });
     var opts = {
       width: Math.max(320, Math.min(720, box.clientWidth || 640)), height: 240,
       scales: { x: { time: false } },
-      axes: [{ label: "openings since the trend's start" }, { label: p.parameter + " (compensated)" }],
-      series: [{},
-        { label: "observed", stroke: "#555", width: 0, points: { show: true, size: 4 } },
-        { label: "5 %", stroke: "#7aa6d6", dash: [4, 4], spanGaps: true },
-        { label: "median", stroke: "#1f5fa8", width: 2, spanGaps: true },
-        { label: "95 %", stroke: "#7aa6d6", dash: [4, 4], spanGaps: true },
-        { label: "limit", stroke: "#c0392b", width: 2 }],
+      // no live legend: without a hovered point it would read "--"; the labels carry the values
+      legend: { live: false },
+      axes: [{ label: "openings since the trend's start" },
+        { label: par + " (compensated)" + (UNIT[par] ? " [" + UNIT[par] + "]" : ""), size: 70 }],
+      series: series,
       bands: [{ series: [4, 2], fill: "rgba(31,95,168,0.15)" }]
     };
     new uPlot(opts, data, box);
@@ -63,10 +68,10 @@
           fig.setAttribute("data-prognosis-param", p.parameter);
           var cap = document.createElement("figcaption");
           cap.className = "small";
-          cap.textContent = summary(p);
+          cap.textContent = p.summary;
           fig.appendChild(cap);
           charts.appendChild(fig);
-          if (p.status === "ok" || p.status === "crossed") { chart(fig, p); }
+          if (p.fan && p.fan.operations) { chart(fig, p); }
         });
       })
       .catch(function (e) { note.textContent = "The prognosis could not be loaded: " + e.message; });
