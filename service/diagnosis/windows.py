@@ -21,6 +21,9 @@ from scipy.ndimage import uniform_filter1d
 from scipy.optimize import least_squares
 from scipy.stats import chi2
 
+from drivers.capture import CaptureError
+
+from ..estimation import FitError
 from ..mechanics.breaker import Breaker
 from ..mechanics.coordinates import operation_coordinate
 from .data import BLOCK_S, STATE, WindowData, design_state, model_curve, state_bounds, window_data
@@ -104,7 +107,10 @@ def prepare(captures, breaker: Breaker, operation: str, *, fitter=None, seed: in
                                  f"refused") from None
         except ValueError as exc:
             msg = str(exc)
-            if re.search(r"\b(nans?|infs?|infinity)\b", msg, re.IGNORECASE):     # a library's, not ours
+            # the estimator's and the reader's own errors are already in words; only a library's
+            # message about non-numbers is replaced
+            ours = isinstance(exc, (FitError, CaptureError))
+            if not ours and re.search(r"\b(nans?|infs?|infinity)\b", msg, re.IGNORECASE):
                 raise DiagnosisError(f"{name}: the reduced model's fit failed on this record "
                                      f"({int((~valid).sum())} samples not numbers): refused") from None
             raise DiagnosisError(msg if msg.startswith(name) else f"{name}: {msg}") from None

@@ -191,11 +191,13 @@ def _prognosis_section(pdf: ReportPDF, c: ReportContent):
             ops = "past the limit now"
         elif q is None:
             ops = "none within the horizon"
+        elif q.median is None:   # no trend: the slope's 90 % interval holds zero
+            ops = "no trend: not within the horizon" + ("" if q.p05 is None else f" (5 %: {q.p05:.0f})")
         else:
             low = "—" if q.p05 is None else f"{q.p05:.0f}"
             high = "beyond the horizon" if q.p95 is None else f"{q.p95:.0f}"
             ops = f"{q.median:.0f} ({low} to {high})"
-        date = "—" if d is None else f"{d.median:%Y-%m-%d}"
+        date = "—" if d is None or d.median is None else f"{d.median:%Y-%m-%d}"
         rows.append((p.parameter, p.limit_text, _g(p.limit, 5), _g(p.current, 5), ops, date,
                      p.status + (f": {p.reason}" if p.reason else "")))
     pdf.grid(("Parameter", "Limit as written", "Limit", "Now (comp.)", "Operations to limit, median (5–95 %)",
@@ -296,9 +298,10 @@ def _soonest(progs) -> str:
     q = p.operations_to_limit
     if p.status == "crossed":
         return f"{p.parameter} is past its limit ({p.limit_text}): service is due"
-    if q is None:
+    if q is None or q.median is None:
         return f"no limit crossing expected within the horizon (soonest: {p.parameter}, {p.status})"
-    when = f", about {p.date_to_limit.median:%Y-%m-%d}" if p.date_to_limit else ""
+    d = p.date_to_limit
+    when = f", about {d.median:%Y-%m-%d}" if d is not None and d.median is not None else ""
     return f"{p.parameter} reaches its limit ({p.limit_text}) in about {q.median:.0f} operations{when}"
 
 

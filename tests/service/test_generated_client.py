@@ -30,8 +30,12 @@ def hvcb_client(env, tmp_path):
     spec = tmp_path / "openapi.json"
     spec.write_text(json.dumps(env.client.get("/openapi.json").json()))
     bin_dir = str(Path(sys.executable).parent)  # its formatter (ruff) is installed beside it
+    # the condition report is a binary download: the generator reads files as application/octet-stream
+    config = tmp_path / "generator.json"
+    config.write_text(json.dumps({"content_type_overrides": {"application/pdf": "application/octet-stream"}}))
     run = subprocess.run([sys.executable, "-m", "openapi_python_client", "generate", "--path", str(spec),
-                          "--meta", "none", "--output-path", str(tmp_path / "hvcb_client")],
+                          "--meta", "none", "--config", str(config),
+                          "--output-path", str(tmp_path / "hvcb_client")],
                          capture_output=True, text=True, timeout=300, cwd=tmp_path,
                          env={**os.environ, "PATH": bin_dir + os.pathsep + os.environ.get("PATH", "")})
     assert run.returncode == 0, run.stdout + run.stderr
