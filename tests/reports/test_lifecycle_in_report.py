@@ -12,12 +12,10 @@ import pytest
 from .conftest import BREAKER_FILE
 
 
-@pytest.mark.skipif(shutil.which("pdftotext") is None, reason="report lane off: pdftotext not installed")
-def test_the_lifecycle_and_the_shelve_are_in_the_report(tmp_path):
+def _leak_history(tmp_path, n: int):
+    """A migrated SQLite database with the reference breaker and ``n`` operations of a buffer leak
+    (its DO alarm raised): (session factory, settings)."""
     from service.breaker_file import load_breaker
-    from service.jobs.alarm_actions import audit_acknowledge, shelve
-    from service.reports.content import gather
-    from service.reports.pdf import render
     from service.settings import load_settings
     from service.storage import crud
     from service.storage.db import make_engine, session_factory, upgrade
@@ -32,7 +30,18 @@ def test_the_lifecycle_and_the_shelve_are_in_the_report(tmp_path):
     with Session() as s, s.begin():
         crud.register_breaker_file(s, path=BREAKER_FILE, tag="Q1")
     bulk_history(Session, settings.drift_settings, load_breaker(BREAKER_FILE), capture_path="/nonexistent.cfg",
-                 n=200, leak_from=0.5, leak_per_op=0.97)
+                 n=n, leak_from=0.5, leak_per_op=0.97)
+    return Session, settings
+
+
+@pytest.mark.skipif(shutil.which("pdftotext") is None, reason="report lane off: pdftotext not installed")
+def test_the_lifecycle_and_the_shelve_are_in_the_report(tmp_path):
+    from service.jobs.alarm_actions import audit_acknowledge, shelve
+    from service.reports.content import gather
+    from service.reports.pdf import render
+    from service.storage import crud
+
+    Session, settings = _leak_history(tmp_path, n=200)
 
     def report_text() -> str:
         with Session() as s:
@@ -60,24 +69,11 @@ def test_figures_drawn_in_several_threads_at_once_are_the_figures_drawn_alone(tm
     """The API renders reports in worker threads: the figures use no shared pyplot state."""
     from concurrent.futures import ThreadPoolExecutor
 
-    from service.breaker_file import load_breaker
     from service.reports import figures
     from service.reports.content import gather
-    from service.settings import load_settings
     from service.storage import crud
-    from service.storage.db import make_engine, session_factory, upgrade
 
-    from .history import bulk_history
-
-    url = f"sqlite:///{tmp_path / 'hvcb.sqlite3'}"
-    upgrade(url)
-    settings = load_settings(data_dir=tmp_path, database_url=url, broker_url="", executor="inline",
-                             bootstrap_admin_key=None)
-    Session = session_factory(make_engine(url))
-    with Session() as s, s.begin():
-        crud.register_breaker_file(s, path=BREAKER_FILE, tag="Q1")
-    bulk_history(Session, settings.drift_settings, load_breaker(BREAKER_FILE), capture_path="/nonexistent.cfg",
-                 n=120, leak_from=0.5, leak_per_op=0.97)
+    Session, settings = _leak_history(tmp_path, n=120)
     with Session() as s:
         c = gather(s, breaker=crud.get_breaker(s, breaker_id=1), settings=settings.drift_settings)
     alone = (figures.trends_png(c.trends), figures.fan_png(c.prognoses))
