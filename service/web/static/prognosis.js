@@ -6,6 +6,9 @@
   // The card's words come with the data (service/prognosis/words.py), so the page, the API and the
   // fleet say the same thing.
   var UNIT = { DO: "s⁻¹", BO: "s⁻²", AO: "s⁻²", EO: "s⁻²", AC: "s⁻²", CC: "s⁻²" };
+  // service/mechanics/nomenclature.py NAMES, with the code beside them
+  var NAME = { DO: "buffer damping (DO)", BO: "opening spring force (BO)", AO: "opening spring stiffness (AO)",
+    EO: "buffer stiffness (EO)", AC: "closing spring stiffness (AC)", CC: "closing resistance (CC)" };
 
   function val(x, par) {
     if (x === null || x === undefined || !isFinite(x)) { return ""; }
@@ -28,9 +31,9 @@
     var data = [xs, on(f.observed.operations, obs), on(f.operations, f.p05),
       on(f.operations, f.median), on(f.operations, f.p95)];
     var series = [{},
-      { label: "observed (latest " + val(last, par) + ")", stroke: "#555", width: 0, points: { show: true, size: 4 } },
+      { label: "fits, compensated (latest " + val(last, par) + ")", stroke: "#555", width: 0, points: { show: true, size: 4 } },
       { label: "5 %", stroke: "#7aa6d6", dash: [4, 4], spanGaps: true },
-      { label: "median (now " + val(p.current, par) + ")", stroke: "#1f5fa8", width: 2, spanGaps: true },
+      { label: "median (trend level " + val(p.current, par) + ")", stroke: "#1f5fa8", width: 2, spanGaps: true },
       { label: "95 %", stroke: "#7aa6d6", dash: [4, 4], spanGaps: true }];
     // every limit of the breaker file: both sides of a two-sided limit
     var limits = (p.limits && p.limits.length) ? p.limits : [{ direction: p.direction, value: p.limit }];
@@ -46,11 +49,12 @@
       // no live legend: without a hovered point it would read "--"; the labels carry the values
       legend: { live: false },
       axes: [{ label: "openings since the trend's start" },
-        { label: par + " (compensated)" + (UNIT[par] ? " [" + UNIT[par] + "]" : ""), size: 70 }],
+        { label: (NAME[par] || par) + ", compensated" + (UNIT[par] ? " [" + UNIT[par] + "]" : ""), size: 70 }],
       series: series,
       bands: [{ series: [4, 2], fill: "rgba(31,95,168,0.15)" }]
     };
     new uPlot(opts, data, box);
+    box.setAttribute("data-axis-labels", opts.axes.map(function (a) { return a.label || ""; }).join("|"));
   }
 
   function load(section) {
