@@ -80,7 +80,7 @@ def test_template_draws_every_part_escaped():
     assert 'title="puffer_gas">puffer gas compression' in html and "two effects at once" in html
     assert "DO +2.1 %" in html and "-0.0 %" not in html
     assert ('title="orifice_buffer+viscous_friction">orifice buffer (damping ∝ speed²) + viscous bearing friction'
-            '</strong>, probability <span id="bdiag-probability">0.900</span>') in html
+            '</strong></span><span class="small"> (probability <span id="bdiag-probability">0.900</span>') in html
     assert "Present but mild" not in html          # no size gate: materiality is a flag beside the answer
     assert 'id="bdiag-before">3.000<' in html and 'id="bdiag-after">1.600<' in html
     assert "<th>Corrected</th>" in html and "bdiag-no-correction" not in html

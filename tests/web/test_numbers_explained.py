@@ -14,7 +14,7 @@ from datetime import timedelta
 
 import pytest
 
-from .weblive import T0, PageLog, screenshot, sign_in, start_server
+from .weblive import T0, PageLog, sign_in, start_server
 
 VIEWPORT = {"width": 1400, "height": 900}
 # The units the pages use (service/mechanics/nomenclature.py, the travel characteristics, the
@@ -111,7 +111,6 @@ def test_alarms_page_values_have_units_and_the_now_value_follows_the_latest_fit(
         shown_raised = signed(card.locator('[data-value="raised"] .num').first.inner_text().split()[0])
         assert shown_now == pytest.approx(latest.parameters["DO"], rel=1e-3)
         assert shown_now < shown_raised * 0.9, (shown_now, shown_raised)
-        screenshot(page, "alarms")
 
 
 def test_breaker_page_alarm_line_and_summary_have_units(demo, browser):
@@ -130,7 +129,6 @@ def test_breaker_page_alarm_line_and_summary_have_units(demo, browser):
         thresholds = re.findall(r"(?:warning|alarm) ([\d.]+)", legends)
         assert thresholds and all(len(t.replace(".", "").lstrip("0")) <= 4 for t in thresholds), legends
         assert "σ" in legends, legends
-        screenshot(page, "breaker")
 
 
 def test_operation_page_rows_have_units(demo, browser):
