@@ -6,9 +6,6 @@
   // The card's words come with the data (service/prognosis/words.py), so the page, the API and the
   // fleet say the same thing.
   var UNIT = { DO: "s⁻¹", BO: "s⁻²", AO: "s⁻²", EO: "s⁻²", AC: "s⁻²", CC: "s⁻²" };
-  // service/mechanics/nomenclature.py NAMES, with the code beside them
-  var NAME = { DO: "buffer damping (DO)", BO: "opening spring force (BO)", AO: "opening spring stiffness (AO)",
-    EO: "buffer stiffness (EO)", AC: "closing spring stiffness (AC)", CC: "closing resistance (CC)" };
 
   function val(x, par) {
     if (x === null || x === undefined || !isFinite(x)) { return ""; }
@@ -49,7 +46,7 @@
       // no live legend: without a hovered point it would read "--"; the labels carry the values
       legend: { live: false },
       axes: [{ label: "openings since the trend's start" },
-        { label: (NAME[par] || par) + ", compensated" + (UNIT[par] ? " [" + UNIT[par] + "]" : ""), size: 70 }],
+        { label: par + ", compensated" + (UNIT[par] ? " [" + UNIT[par] + "]" : ""), size: 70 }],
       series: series,
       bands: [{ series: [4, 2], fill: "rgba(31,95,168,0.15)" }]
     };
