@@ -11,7 +11,7 @@ FULL   := $(VENV)/.installed-test
 TEST_EXTRAS ?= dev,studies,iec61850,plots,docs,notify
 RUN_ARGS ?=
 
-.PHONY: run test setup bench docs docs-serve clean
+.PHONY: run test setup bench docs docs-serve screenshots clean
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
@@ -34,6 +34,10 @@ run: $(CORE)
 
 test: $(FULL)
 	$(PY) -m pytest -q $(PYTEST_ARGS)
+
+# The README's and docs' screenshots, taken by the browser tests from the demo's running chain.
+screenshots: $(FULL)
+	HVCB_WEB_SCREENSHOTS=docs/screenshots $(PY) -m pytest -q tests/web/test_engineer_pages.py tests/web/test_pages.py
 
 docs: $(FULL)
 	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict

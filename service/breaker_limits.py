@@ -63,6 +63,28 @@ class ParameterLimit(BaseModel):
             out.append(("rising", self.max if self.max is not None else baseline * (1.0 + self.max_change)))
         return out
 
+    def words(self, unit: str = "") -> str:
+        """The limit in words: "25 % below the baseline", "10 % below or above the baseline",
+        "at least 30 s⁻¹", "at most 50 s⁻¹ or 20 % above the baseline"."""
+        def pct(x: float) -> str:
+            return f"{abs(x) * 100:.3g} %"
+
+        def absolute(x: float) -> str:
+            return f"{x:.4g} {unit}".strip()
+
+        if self.min_change is not None and self.max_change is not None and self.min_change == -self.max_change:
+            return f"{pct(self.min_change)} below or above the baseline"
+        parts = []
+        if self.min is not None:
+            parts.append(f"at least {absolute(self.min)}")
+        if self.min_change is not None:
+            parts.append(f"{pct(self.min_change)} below the baseline")
+        if self.max is not None:
+            parts.append(f"at most {absolute(self.max)}")
+        if self.max_change is not None:
+            parts.append(f"{pct(self.max_change)} above the baseline")
+        return " or ".join(parts)
+
     def describe(self) -> str:
         """The limit as written, e.g. ``min_change = -0.25``."""
         return ", ".join(f"{k} = {v:g}" for k, v in self.model_dump(exclude_none=True).items())

@@ -20,10 +20,10 @@ ROOT = Path(__file__).resolve().parents[1]
 # between packages) and anything lower. Keep in step with docs/architecture.md.
 LAYERS: list[tuple[str, ...]] = [
     ("service.errors", "service.progress", "service.plots", "service.durable", "service.decimation",
-     "service.arguments", "service.processes"),
+     "service.arguments", "service.processes", "service.findings"),
     ("service.mechanics",),                                      # the paper's reduced physics
     ("drivers", "service.breaker_file", "service.breaker_travel", "service.breaker_limits",
-     "service.acquisition"),  # captures, DAQs, breaker files
+     "service.acquisition", "service.display"),  # captures, DAQs, breaker files; numbers and names in words
     ("service.estimation", "service.storage", "service.alarms", "service.prognosis", "service.prototypes"),
     ("service.diagnosis", "service.studies", "service.notifications"),
     ("service.jobs", "service.workers", "service.refit", "service.agent", "service.iec61850",

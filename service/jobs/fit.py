@@ -285,20 +285,16 @@ def apply_alarm_event(session, *, breaker_id: int, event) -> AlarmRow | None:
     return active
 
 
-_MEANING = {"DO": "buffer damping factor DO", "BO": "opening spring factor BO"}
-_CAUSE = {("DO", "falling"): "buffer oil leak", ("BO", "falling"): "opening spring relaxation or more resistance",
-          ("BO", "rising"): "less resistance or a pre-compression change",
-          ("DO", "rising"): "buffer damping increase"}
-
-
 def _message(event) -> str:
+    from service.display import parameter_label, signed_change
+    from service.findings import likely_cause
+
     ev = event.evidence or {}
     direction = ev.get("drift_direction", "")
     change = (ev.get("current") or {}).get("change_rel")
-    pct = f" ({change * 100:+.1f} % from baseline)" if isinstance(change, (int, float)) else ""
-    cause = _CAUSE.get((event.parameter, direction), "mechanism change")
-    return (f"{event.level.upper()}: {_MEANING.get(event.parameter, event.parameter)} {direction}{pct}; "
-            f"likely {cause}")
+    pct = f" ({signed_change(change)} from baseline)" if isinstance(change, (int, float)) else ""
+    return (f"{event.level.upper()}: {parameter_label(event.parameter)} {direction}{pct}; "
+            f"likely {likely_cause(event.parameter, direction)}")
 
 
 def acknowledge_drift(session, *, alarm: AlarmRow, by: str, settings) -> None:

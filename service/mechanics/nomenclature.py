@@ -22,6 +22,19 @@ UNITS = {
     "DC": "s⁻²",  # kO·rO²/J2 = AO, seen while closing
 }
 
+# Each parameter in words (docs/models.md's table, shortened to what an engineer calls it).
+NAMES = {
+    "AO": "opening spring stiffness",
+    "BO": "opening spring force",
+    "CO": "puffer damping",
+    "DO": "buffer damping",
+    "EO": "buffer stiffness",
+    "AC": "closing spring stiffness",
+    "BC": "inertia ratio",
+    "CC": "closing resistance",
+    "DC": "opening spring stiffness seen while closing",
+}
+
 
 def machine_unit(name: str) -> str:
     """``name``'s unit in ASCII for machine consumers (SCADA, IEC 61850): "s^-2", "s^-1", "1"."""

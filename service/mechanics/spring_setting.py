@@ -99,8 +99,9 @@ def setting(reading: dict, breaker: Breaker, *, reference: dict | None = None,
         steps = reading["steps"]
         kappa_sd = kO_tolerance / math.sqrt(3.0) * steps_per_kO(breaker)
         sd = math.hypot(reading["sd_steps"], kappa_sd)
-        basis = (f"from the design seat; the unit's spring rate is not read (±{100 * kO_tolerance:g} % "
-                 "tolerance in the interval): record a commissioning pair")
+        basis = (f"counted from the design seat. This unit's own spring stiffness is not known, so the "
+                 f"interval allows for the spring maker's ±{100 * kO_tolerance:g} % tolerance; record a "
+                 "commissioning pair (below) to narrow it")
     return {"steps": steps, "sd_steps": sd, "ci95": (steps - Z95 * sd, steps + Z95 * sd),
             "nearest": round(steps), "friction": reading["friction"], "sd_friction": reading.get("sd_friction"),
             "kO_sd_steps": kappa_sd, "basis": basis}

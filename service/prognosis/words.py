@@ -10,20 +10,17 @@ from __future__ import annotations
 import math
 from datetime import datetime
 
+from service.display import parameter_label
+from service.findings import action
 from service.mechanics.nomenclature import UNITS
 
-# The parameter in words, and what a crossing asks the planner to do.
-NAMES = {"DO": "buffer damping DO", "BO": "opening spring factor BO", "AO": "opening drive AO",
-         "EO": "opening end stop EO", "AC": "closing drive AC", "BC": "closing friction BC",
-         "CC": "closing spring CC"}
-ACTIONS = {"DO": "Service the buffer (oil level and seals).", "BO": "Service the opening spring and its latch.",
-           "AC": "Service the closing drive.", "CC": "Service the closing spring."}
 # Fitted opening parameters come from openings, closing ones from closings.
 OPENING = {"AO", "BO", "DO", "EO"}
 
 
 def name(parameter: str) -> str:
-    return NAMES.get(parameter, parameter)
+    """The parameter in words with its code: "buffer damping (DO)"."""
+    return parameter_label(parameter)
 
 
 def value(x: float, parameter: str) -> str:
@@ -81,12 +78,13 @@ def summary(p: dict) -> str:
     par = p["parameter"]
     who = name(par)
     who_cap = who[0].upper() + who[1:]
-    now = f"{value(p['current'], par)} now" if p.get("current") is not None else ""
+    # "now" is the latest fit everywhere (the alarm line, the fleet); the prognosis speaks of its trend
+    now = f"trend level {value(p['current'], par)}" if p.get("current") is not None else ""
     if p.get("limit") is None and p["status"] == "no trend":
         return f"{who_cap}: no prognosis yet: {p['reason']}."
     lim = limits_text(p, par)
     if p["status"] == "crossed":
-        return f"{who_cap} crossed its limit: {now}; {lim}. {ACTIONS.get(par, 'Service is due.')}"
+        return f"{who_cap} crossed its limit: {now}; {lim}. {action(par)}"
     q, d = p.get("operations_to_limit"), p.get("date_to_limit")
     if p["status"] == "no trend":
         early = ""
@@ -104,6 +102,9 @@ def summary(p: dict) -> str:
     if d and d.get("median"):
         dhi = date(d["p95"]) if d.get("p95") else "later"
         when = f", around {date(d['median'])} (90 %: {date(d['p05'])} – {dhi})"
+    if q["median"] < 0.5:  # the median crossing is the next opening: it is at its limit now
+        return (f"{who_cap} is at its limit: service is due (90 % interval {span}). "
+                f"{now[0].upper() + now[1:]}; {lim}. {action(par)}")
     return (f"{who_cap} reaches its limit in about {operations(q['median'], par)}{when}; 90 % interval "
             f"{span}. {now[0].upper() + now[1:]}; {lim}. Trend since the {p['basis']}, "
             f"{p['basis_operations']} fits.")
@@ -121,5 +122,7 @@ def fleet_text(p: dict) -> str:
         return f"{name(par)}: no trend, not within {horizon_text(p)}"
     if not q or q.get("median") is None:
         return f"{name(par)}: not within {horizon_text(p)}"
+    if q["median"] < 0.5:
+        return f"{name(par)}: at its limit, service due"
     when = f" (around {date(d['median'])})" if d and d.get("median") else ""
     return f"{name(par)}: limit in about {operations(q['median'], par)}{when}"

@@ -17,6 +17,7 @@ from sqlalchemy import func, select
 from service import __version__
 from service.breaker_file import BreakerFileError, parse_breaker_text
 from service.decimation import minmax_indices
+from service.display import parameter_label, quantity, watched_words
 from service.mechanics.nomenclature import CLOSING, OPENING, UNITS
 from service.storage import crud_alarms, crud_diagnoses
 from service.storage.models import (AlarmRow, BreakerRow, DriftStateRow, FitRow, OperationRow,
@@ -88,6 +89,7 @@ class ReportContent:
     diagnosis: dict | None
     method: list[tuple[str, str]]
     file_problem: str = ""
+    limit_words: dict[str, str] = field(default_factory=dict)  # parameter -> its maintenance limit in words
 
 
 def _baselines(session, breaker_id: int) -> dict[str, float | None]:
@@ -255,7 +257,7 @@ def gather(session, *, breaker: BreakerRow, settings, window: Window = Window())
                  if breaker.baseline_reset_at else "its first operations")]
     if model is not None:
         design = model.design_parameters()
-        identity.append(("Design parameters", ", ".join(f"{k} {design[k]:.4g} {UNITS.get(k, '').strip('–')}".strip()
+        identity.append(("Design parameters", ", ".join(f"{parameter_label(k)} {quantity(design[k], k, 4)}"
                                                          for k in (*OPENING, *CLOSING) if k in design)))
     if breaker.out_of_service_since:
         identity.append(("Out of service", f"since {breaker.out_of_service_since:%Y-%m-%d %H:%M} UTC: "
@@ -266,9 +268,10 @@ def gather(session, *, breaker: BreakerRow, settings, window: Window = Window())
               ("Fit versions", "—" if versions[0] is None else
                (f"{versions[0]}" if versions[0] == versions[1] else f"{versions[0]} to {versions[1]}")
                + " (hvcb refit raises an operation's version)"),
-              ("Drift detector", f"baseline {settings.baseline_n} fits, k = {settings.k:g} σ, warning at "
-                                 f"{settings.h_warning:.3g} σ, alarm at {settings.h_alarm:.3g} σ; watched "
-                                 + ", ".join(f"{k} ({v})" for k, v in settings.watched.items()))]
+              ("Drift detector", f"baseline of {settings.baseline_n} fits; allowance {settings.k:g} σ, warning at "
+                                 f"{settings.h_warning:.3g} σ, alarm at {settings.h_alarm:.3g} σ (σ: the breaker's own "
+                                 "run-to-run spread); watched: "
+                                 + ", ".join(f"{parameter_label(k)} {watched_words(v)}" for k, v in settings.watched.items()))]
     progs = breaker_prognoses(session, breaker=breaker, settings=settings)
     if progs:
         method.append(("Prognosis model", progs[0].model))
@@ -278,4 +281,5 @@ def gather(session, *, breaker: BreakerRow, settings, window: Window = Window())
         latest={k: _latest(session, breaker, k, window, file_model, baselines, model) for k in ("open", "close")},
         trends=_trends(session, breaker, window, baselines, file_model, alarms),
         alarms=alarms, alarm_actions=actions, active_alarms=active, prognoses=progs,
-        diagnosis=_diagnosis(session, breaker.id), method=method, file_problem=file_problem)
+        diagnosis=_diagnosis(session, breaker.id), method=method, file_problem=file_problem,
+        limit_words={k: lim.words(UNITS.get(k, "")) for k, lim in (file_model.limits.items() if file_model else [])})

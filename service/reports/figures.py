@@ -12,6 +12,7 @@ import io
 import numpy as np
 
 from service.decimation import minmax_indices
+from service.display import parameter_label, plural, unit
 from service.plots import require_matplotlib
 
 DPI = 150  # sharp on paper at the widths used (≤ 180 mm: ≥ 1000 px), a few 100 kB per figure
@@ -53,6 +54,27 @@ def _naive_utc(times) -> np.ndarray:
                       dtype="datetime64[ms]")
 
 
+def _date_axis(ax, t) -> None:
+    """Time ticks an engineer reads without an offset label: clock times within a day (the day
+    in the axis title), dates within a year, months beyond."""
+    import matplotlib.dates as mdates
+
+    if len(t) == 0:
+        return
+    span_days = float((t.max() - t.min()) / np.timedelta64(1, "D"))
+    first, last = str(t.min())[:10], str(t.max())[:10]
+    if span_days < 2:
+        fmt = "%H:%M"
+        label = f"time (UTC) on {first}" if first == last else f"time (UTC), {first} to {last}"
+    elif span_days < 370:
+        fmt, label = "%m-%d", f"date (UTC), {first} to {last}"
+    else:
+        fmt, label = "%Y-%m", "month (UTC)"
+    ax.xaxis.set_major_locator(mdates.AutoDateLocator(minticks=3, maxticks=6))
+    ax.xaxis.set_major_formatter(mdates.DateFormatter(fmt))
+    ax.set_xlabel(label, fontsize=7)
+
+
 def curves_png(latest: dict) -> bytes | None:
     """The latest opening's and closing's travel: measured and fitted, side by side."""
     shown = [(k, v) for k, v in latest.items() if v is not None and v.curve is not None]
@@ -81,8 +103,7 @@ def trends_png(trends: list) -> bytes | None:
         return None
     cols = 2
     rows = -(-len(trends) // cols)
-    fig, axes = _figure(rows, cols, 1.55 * rows + 0.3)
-    import matplotlib.dates as mdates
+    fig, axes = _figure(rows, cols, 1.75 * rows + 0.3)
     for ax in axes.flat[len(trends):]:
         ax.set_visible(False)
     for ax, tr in zip(axes.flat, trends):
@@ -100,10 +121,9 @@ def trends_png(trends: list) -> bytes | None:
             ax.axhline(value, color=COLOURS["limit"], linewidth=1.0, label=f"limit ({bound})")
         for at, level in tr.alarms:
             ax.axvline(_naive_utc([at])[0], color=COLOURS[level], linewidth=1.0, linestyle=":")
-        ax.set_title(f"{tr.name} [{tr.unit}]  ({tr.count} fits)", fontsize=8)
-        locator = mdates.AutoDateLocator(minticks=3, maxticks=7)
-        ax.xaxis.set_major_locator(locator)
-        ax.xaxis.set_major_formatter(mdates.ConciseDateFormatter(locator))
+        ax.set_title(f"{parameter_label(tr.name)}, {plural(tr.count, 'fit')}", fontsize=8)
+        ax.set_ylabel(f"{tr.name} [{unit(tr.name)}]", fontsize=7)
+        _date_axis(ax, t)
         _style(ax)
     handles = {}
     for ax in axes.flat[:len(trends)]:
@@ -130,8 +150,9 @@ def _fan_span(f: dict, limit: float | None) -> tuple[float, float]:
     return lo - pad, hi + pad
 
 
-def fan_png(prognoses: list) -> bytes | None:
-    """Each limited parameter's projected level (5/50/95 %) toward its limit."""
+def fan_png(prognoses: list, limit_words: dict | None = None) -> bytes | None:
+    """Each limited parameter's projected level (5/50/95 %) toward its limit(s); ``limit_words``:
+    parameter -> its limit in words (ParameterLimit.words)."""
     shown = [p for p in prognoses if p.fan and p.fan.get("operations")]
     if not shown:
         return None
@@ -145,14 +166,17 @@ def fan_png(prognoses: list) -> bytes | None:
         if obs.get("operations"):
             on, ov = np.asarray(obs["operations"], float), np.asarray(obs["value"], float)
             keep = minmax_indices(ov, FAN_POINTS // 2)
-            ax.plot(on[keep], ov[keep], ".", color="#333333", markersize=1.5, label="observed (compensated)")
-        if p.limit is not None:
-            ax.axhline(p.limit, color=COLOURS["limit"], linewidth=1.0, label="limit")
+            ax.plot(on[keep], ov[keep], ".", color="#333333", markersize=1.5, label="fits (compensated)")
+        lims = [lim["value"] for lim in (getattr(p, "limits", None) or [])] or ([p.limit] if p.limit is not None else [])
+        for i, value in enumerate(lims):
+            ax.axhline(value, color=COLOURS["limit"], linewidth=1.0, label="limit" if i == 0 else None)
         ax.set_ylim(*_fan_span(f, p.limit))
         if f.get("now") is not None:
             ax.axvline(f["now"], color=COLOURS["baseline"], linestyle=":", linewidth=0.8)
-        ax.set_title(f"{p.parameter}: {p.limit_text}", fontsize=8)
+        ax.set_title(f"{parameter_label(p.parameter)}: limit {(limit_words or {}).get(p.parameter) or p.limit_text}",
+                     fontsize=8)
         ax.set_xlabel("operations from the trend's first fit", fontsize=7)
+        ax.set_ylabel(f"{p.parameter}, compensated [{unit(p.parameter)}]", fontsize=7)
         ax.legend(fontsize=6, loc="best")
         _style(ax)
     return _png(fig)

@@ -14,6 +14,9 @@ from pathlib import Path
 from fpdf import FPDF
 from fpdf.fonts import FontFace
 
+from service.display import parameter_label, plural, quantity, significant, signed_change, unit
+from service.findings import action, likely_cause
+from service.mechanics.nomenclature import OPENING
 from service.storage.crud_alarms import annunciated, shelved_now
 
 from . import figures
@@ -35,7 +38,8 @@ def _t(t) -> str:
 
 
 def _g(v, digits: int = 4) -> str:
-    return "—" if v is None else f"{v:.{digits}g}"
+    """A number in plain notation with a minus sign, never 2.363e+04."""
+    return significant(v, digits, grouping=True)
 
 
 class ReportPDF(FPDF):
@@ -128,7 +132,7 @@ def _latest_section(pdf: ReportPDF, c: ReportContent, kind: str):
     pdf.para(f"Operation #{op.operation_id}, {_t(op.occurred_at)}; fit version {op.fit_version}, rms residual "
              f"{_g(op.rmse_rad * 1e3 if op.rmse_rad is not None else None, 3)} mrad"
              + ("" if op.identifiable is not False else "; NOT identifiable: the values are uncertain")
-             + f". Verdict against the breaker file's limits: {overall(verdicts)}.", style="B")
+             + f". Against the breaker file's limits: {_verdict_words(overall(verdicts), verdicts)}.", style="B")
     pdf.grid(("Characteristic", "Measured", "Limit", "Unit", "Result"),
              [(v.label, _g(v.value), v.limit_text, v.unit, v.result) for v in op.characteristic_verdicts],
              (55, 30, 45, 20, 30), result_col=4)
@@ -136,10 +140,18 @@ def _latest_section(pdf: ReportPDF, c: ReportContent, kind: str):
     rows = []
     for v in op.parameter_verdicts:
         ci = op.ci95.get(v.name)
-        rows.append((v.name, _g(v.value, 5), f"{ci[0]:.5g} to {ci[1]:.5g}" if ci else "—", v.limit_text, v.unit,
-                     v.result))
+        rows.append((parameter_label(v.name), _g(v.value, 5), f"{_g(ci[0], 5)} to {_g(ci[1], 5)}" if ci else "—",
+                     v.limit_text, unit(v.name), v.result))
     pdf.grid(("Fitted parameter", "Value", "95 % interval", "Limit", "Unit", "Result"), rows,
-             (35, 25, 45, 35, 15, 25), result_col=5)
+             (52, 20, 38, 30, 15, 25), result_col=5)
+
+
+def _verdict_words(result: str, verdicts) -> str:
+    """PASS, or FAIL naming what fails."""
+    if result != FAIL:
+        return result
+    failed = [v.label if v.name == v.label else parameter_label(v.name) for v in verdicts if v.result == FAIL]
+    return f"FAIL ({', '.join(failed)} outside the limit)"
 
 
 def _alarm_section(pdf: ReportPDF, c: ReportContent):
@@ -148,24 +160,25 @@ def _alarm_section(pdf: ReportPDF, c: ReportContent):
     if active:
         pdf.para(f"Active now ({len(active)}):", style="B")
         pdf.grid(("Parameter", "Level", "State", "Raised", "Message"),
-                 [(a.parameter, a.level.upper(), a.state + (f" (shelved until {_t(a.shelved_until)})"
+                 [(parameter_label(a.parameter), a.level.upper(), a.state + (f" (shelved until {_t(a.shelved_until)})"
                                                             if shelved_now(a, c.generated_at) else ""), _t(a.raised_at),
-                   a.message) for a in active], (21, 16, 23, 40, 80))
+                   a.message) for a in active], (32, 15, 30, 35, 68))
     else:
         pdf.para("No active alarm.")
     if not c.alarms:
         pdf.para(f"No alarm raised in {c.window.words()}.")
         return
     pdf.ln(1)
-    pdf.para(f"History and evidence ({len(c.alarms)} alarm(s) raised in {c.window.words()}, newest first):",
+    pdf.para(f"History and evidence ({plural(len(c.alarms), 'alarm')} raised in {c.window.words()}, newest first):",
              style="B")
     rows = []
     for a in c.alarms:
         ev = a.evidence or {}
         cur = ev.get("current") or {}
         change = cur.get("change_rel")
-        evidence = (f"{_g(cur.get('value'), 5)} vs expected {_g(cur.get('expected'), 5)}"
-                    + (f" ({100 * change:+.1f} %)" if isinstance(change, (int, float)) else "")
+        u = unit(a.parameter)
+        evidence = (f"{_g(cur.get('value'), 4)} {u} against the expected {_g(cur.get('expected'), 4)} {u}"
+                    + (f" ({signed_change(change)})" if isinstance(change, (int, float)) else "")
                     + (f"; CUSUM {ev['statistic']:.3g} σ (alarm {ev['thresholds']['alarm']:.3g} σ)"
                        if isinstance(ev.get("statistic"), (int, float)) and ev.get("thresholds") else ""))
         life = [f"raised {_t(a.raised_at)}"]
@@ -175,36 +188,64 @@ def _alarm_section(pdf: ReportPDF, c: ReportContent):
             life.append(f"acknowledged {_t(a.acknowledged_at)} by {a.acknowledged_by}")
         if a.cleared_at and not any(x.action.startswith("clear") for x in c.alarm_actions.get(a.id, [])):
             life.append(f"cleared {_t(a.cleared_at)}")
-        rows.append((f"#{a.id} {a.parameter}", a.level.upper(), a.state, "; ".join(life), evidence))
-    pdf.grid(("Alarm", "Level", "State", "Lifecycle", "Evidence when raised"), rows, (20, 16, 22, 70, 52), size=7)
+        rows.append((f"#{a.id} {parameter_label(a.parameter)}", a.level.upper(), a.state, "; ".join(life), evidence))
+    pdf.grid(("Alarm", "Level", "State", "Lifecycle", "Evidence when raised"), rows, (30, 14, 22, 58, 56), size=7)
 
 
 def _prognosis_section(pdf: ReportPDF, c: ReportContent):
     pdf.heading("Prognosis")
     if not c.prognoses:
-        pdf.para("The breaker file has no maintenance [limits]: nothing to forecast (docs/prognosis.md).")
+        pdf.para("The breaker file has no maintenance limits: nothing to forecast (docs/prognosis.md).")
         return
     rows = []
     for p in c.prognoses:
         q, d = p.operations_to_limit, p.date_to_limit
+        kind = "openings" if p.parameter in OPENING else "closings"
         if p.status == "crossed":
             ops = "past the limit now"
-        elif q is None:
-            ops = "none within the horizon"
-        elif q.median is None:   # no trend: the slope's 90 % interval holds zero
-            ops = "no trend: not within the horizon" + ("" if q.p05 is None else f" (5 %: {q.p05:.0f})")
+        elif q is None or q.median is None:
+            ops = "not expected within the horizon" + ("" if q is None or q.p05 is None
+                                                        else f" (at the earliest in {q.p05:,.0f} {kind})")
         else:
-            low = "—" if q.p05 is None else f"{q.p05:.0f}"
-            high = "beyond the horizon" if q.p95 is None else f"{q.p95:.0f}"
-            ops = f"{q.median:.0f} ({low} to {high})"
-        date = "—" if d is None or d.median is None else f"{d.median:%Y-%m-%d}"
-        rows.append((p.parameter, p.limit_text, _g(p.limit, 5), _g(p.current, 5), ops, date,
-                     p.status + (f": {p.reason}" if p.reason else "")))
-    pdf.grid(("Parameter", "Limit as written", "Limit", "Now (comp.)", "Operations to limit, median (5–95 %)",
-              "Date (median)", "Status"), rows, (18, 30, 17, 20, 40, 22, 33), size=7)
-    pdf.figure(figures.fan_png(c.prognoses),
+            low = "—" if q.p05 is None else f"{q.p05:,.0f}"
+            high = "beyond the horizon" if q.p95 is None else f"{q.p95:,.0f}"
+            ops = f"{_operations(q.median, p.parameter)} ({low} to {high})"
+        if p.status == "crossed":
+            date = "now"
+        elif d is not None and d.median is not None:
+            date = f"{d.median:%Y-%m-%d}"
+        elif q is not None and q.median is not None:
+            date = "not known: too few days of operations to learn their rate"
+        else:
+            date = "—"
+        rows.append((parameter_label(p.parameter), _limit_cell(c, p), quantity(p.current, p.parameter, 4), ops, date,
+                     _status_words(p)))
+    pdf.grid(("Parameter", "Limit", "Trend level", "Operations to the limit: median (5–95 %)",
+              "Date (median)", "What it means"), rows, (26, 34, 20, 34, 22, 44), size=7)
+    pdf.para("Trend level: the temperature-compensated trend at the latest fit, which the forecast starts from; "
+             "the latest fit itself is in the tables above.", size=7)
+    pdf.figure(figures.fan_png(c.prognoses, c.limit_words),
                "Projected level of each limited parameter (median and 5–95 % band) against its limit; dots: the "
-               "temperature-compensated fits the trend is drawn through; dotted line: now.")
+               "temperature-compensated fits the trend is drawn through; dotted line: the latest fit.")
+
+
+def _limit_cell(c: ReportContent, p) -> str:
+    """The limit in words with its value(s) and unit: "25 % below the baseline: 31.78 s⁻¹"."""
+    values = [lim["value"] for lim in (p.limits or []) if lim.get("value") is not None] or (
+        [p.limit] if p.limit is not None else [])
+    words = c.limit_words.get(p.parameter) or ""
+    shown = " and ".join(quantity(v, p.parameter, 4) for v in sorted(values))
+    return f"{words}: {shown}" if words and shown else (words or shown or "—")
+
+
+def _status_words(p) -> str:
+    """The prognosis's status as a sentence, once ("no trend" is not repeated)."""
+    if p.status == "crossed":
+        return f"Past the limit: service is due. {action(p.parameter)}"
+    if p.status == "no trend":
+        reason = (p.reason or "").removeprefix("no trend: ").removeprefix("no trend")
+        return "No trend" + (f": {reason}" if reason else "") + "."
+    return "A crossing is expected: plan the service."
 
 
 def _diagnosis_section(pdf: ReportPDF, c: ReportContent):
@@ -232,15 +273,14 @@ def render(c: ReportContent) -> bytes:
     pdf.cell(0, 5, f"Tag {b.tag} · covering {c.window.words()} · generated {_t(c.generated_at)} by hvcb",
              new_x="LMARGIN", new_y="NEXT")
     n = c.counts
-    verdicts = [v for op in c.latest.values() if op is not None
-                for v in op.characteristic_verdicts + op.parameter_verdicts]
     pdf.ln(1)
-    pdf.key_values([("Summary", f"{n['open']} openings and {n['close']} closings from {_t(n['first'])} to "
-                                f"{_t(n['last'])}; {n['done']} fitted, {n['failed']} failed, {n['pending']} pending"),
-                    ("Latest operations", f"{overall(verdicts)}: the latest opening and closing against the "
-                                          "breaker file's limits"),
+    pdf.key_values([("Finding", finding(c)),
+                    ("Operations", f"{plural(n['open'], 'opening')} and {plural(n['close'], 'closing')} from "
+                                   f"{_t(n['first'])} to {_t(n['last'])}; {n['done']:,} fitted, {n['failed']:,} failed, "
+                                   f"{n['pending']:,} pending"),
+                    ("Latest operations", _latest_words(c)),
                     ("Alarms", _alarm_summary(c)),
-                    ("Prognosis", _soonest(c.prognoses))])
+                    ("Prognosis", _soonest(c))])
     pdf.heading("Breaker")
     pdf.key_values(c.identity)
     if c.file_problem:
@@ -277,12 +317,26 @@ def _alarm_summary(c: ReportContent) -> str:
     if not active:
         return "no active alarm"
     told = annunciated(active, c.generated_at)
-    names = ", ".join(f"{a.parameter} {a.level}" + (" (shelved)" if a not in told else "") for a in active)
+    names = ", ".join(f"{parameter_label(a.parameter)} {a.level}" + (" (shelved)" if a not in told else "")
+                      for a in active)
     if not told:
         return f"none annunciated: {len(active)} active, all shelved ({names})"
     level = "ALARM" if any(a.level == "alarm" for a in told) else "WARNING"
     shelved = len(active) - len(told)
     return f"{level}: {len(active)} active ({names})" + (f", {shelved} of them shelved" if shelved else "")
+
+
+def _latest_words(c: ReportContent) -> str:
+    """Each latest operation's verdict on its own: "opening #78 FAIL (…); closing #76 PASS"."""
+    parts = []
+    for kind, word in (("open", "opening"), ("close", "closing")):
+        op = c.latest[kind]
+        if op is None:
+            parts.append(f"no fitted {word}")
+            continue
+        verdicts = op.characteristic_verdicts + op.parameter_verdicts
+        parts.append(f"{word} #{op.operation_id} {_verdict_words(overall(verdicts), verdicts)}")
+    return "; ".join(parts) + ", against the breaker file's limits"
 
 
 def figures_buckets() -> int:
@@ -291,18 +345,71 @@ def figures_buckets() -> int:
     return TREND_BUCKETS
 
 
-def _soonest(progs) -> str:
+def _soonest(c: ReportContent) -> str:
+    progs = c.prognoses
     if not progs:
         return "no maintenance limits in the breaker file"
     p = progs[0]
     q = p.operations_to_limit
+    who = parameter_label(p.parameter)
+    limit = c.limit_words.get(p.parameter) or p.limit_text
     if p.status == "crossed":
-        return f"{p.parameter} is past its limit ({p.limit_text}): service is due"
+        return f"{who} is past its limit ({limit}): service is due"
     if q is None or q.median is None:
-        return f"no limit crossing expected within the horizon (soonest: {p.parameter}, {p.status})"
+        return f"no limit crossing expected within the horizon (soonest: {who}, {p.status})"
+    if q.median < 0.5:
+        return f"{who} is at its limit ({limit}) now: service is due"
     d = p.date_to_limit
     when = f", about {d.median:%Y-%m-%d}" if d is not None and d.median is not None else ""
-    return f"{p.parameter} reaches its limit ({p.limit_text}) in about {q.median:.0f} operations{when}"
+    return f"{who} reaches its limit ({limit}) in about {_operations(q.median, p.parameter)}{when}"
+
+
+def _operations(n: float, parameter: str) -> str:
+    """Whole operations of the parameter's kind: "1 opening", "12 closings"."""
+    return plural(int(round(n)), "opening" if parameter in OPENING else "closing")
+
+
+def finding(c: ReportContent) -> str:
+    """What the report finds, in a sentence or two an asset manager can act on: a limit passed, a
+    drift with its likely cause and what to do, a limit expected soon, a failed check, or none."""
+    text = _finding(c)
+    return text[0].upper() + text[1:]
+
+
+def _finding(c: ReportContent) -> str:
+    crossed = [p for p in c.prognoses if p.status == "crossed"]
+    if crossed:
+        p = crossed[0]
+        cause = likely_cause(p.parameter, p.direction or "")
+        return (f"{parameter_label(p.parameter)} is past its maintenance limit "
+                f"({c.limit_words.get(p.parameter) or p.limit_text}): trend level "
+                f"{quantity(p.current, p.parameter, 3)}. Likely cause: {cause}. {action(p.parameter)}")
+    told = annunciated(c.active_alarms, c.generated_at) if c.active_alarms else []
+    if told:
+        a = told[0]
+        ev = a.evidence or {}
+        direction = ev.get("drift_direction", "")
+        ahead = next((p for p in c.prognoses if p.parameter == a.parameter and p.operations_to_limit is not None
+                      and p.operations_to_limit.median is not None), None)
+        when = ""
+        if ahead is not None:
+            n = ahead.operations_to_limit.median
+            when = (" It is at its maintenance limit now." if n < 0.5 else
+                    f" It is expected to reach its maintenance limit in about {_operations(n, a.parameter)}.")
+        return (f"{parameter_label(a.parameter)} is {direction or 'drifting'} ({a.level}). Likely cause: "
+                f"{likely_cause(a.parameter, direction)}.{when} {action(a.parameter)}")
+    soon = [p for p in c.prognoses if p.operations_to_limit is not None and p.operations_to_limit.median is not None]
+    if soon:
+        return f"No active alarm; {_soonest(c)}. Plan the service."
+    failed = [(kind, op) for kind, op in c.latest.items() if op is not None
+              and overall(op.characteristic_verdicts + op.parameter_verdicts) == FAIL]
+    if failed:
+        kind, op = failed[0]
+        word = "opening" if kind == "open" else "closing"
+        return (f"The latest {word} (#{op.operation_id}) fails a limit of the breaker file: "
+                f"{_verdict_words(FAIL, op.characteristic_verdicts + op.parameter_verdicts)}. Check the mechanism.")
+    return ("No finding: no active alarm, the latest operations meet the breaker file's limits and no limit "
+            "crossing is expected within the horizon.")
 
 
 def report_pdf(c: ReportContent, path: str | Path | None = None) -> bytes:

@@ -13,7 +13,7 @@ from service.breaker_limits import CHARACTERISTIC_UNITS, CharacteristicLimit, Pa
 # How a characteristic is shown: label, display unit, factor from its SI unit.
 CHARACTERISTIC_DISPLAY = {"operating_time_s": ("operating time", "ms", 1e3),
                           "average_speed_rad_s": ("average speed", "rad/s", 1.0),
-                          "max_travel_rad": ("maximum travel", "rad", 1.0),
+                          "max_travel_rad": ("maximum travel", "mrad", 1e3),
                           "overtravel_rad": ("overtravel", "mrad", 1e3),
                           "rebound_rad": ("rebound", "mrad", 1e3),
                           "damping_time_s": ("damping time", "ms", 1e3)}
@@ -35,12 +35,14 @@ class Verdict:
 
     @property
     def limit_text(self) -> str:
+        from service.display import compact
+
         if self.low is not None and self.high is not None:
-            return f"{self.low:.4g} to {self.high:.4g}"
+            return f"{compact(self.low)} to {compact(self.high)}"
         if self.low is not None:
-            return f"≥ {self.low:.4g}"
+            return f"≥ {compact(self.low)}"
         if self.high is not None:
-            return f"≤ {self.high:.4g}"
+            return f"≤ {compact(self.high)}"
         return "—"
 
 

@@ -86,10 +86,29 @@ def _params(reduced, corrected) -> dict:
         rm, rlo, rhi = stats(red, n)
         cm, _, _ = stats(cor, n)
         change = (cm - rm) / abs(rm) if cm is not None and rm not in (None, 0.0) else None
-        rows.append({"name": n, "reduced": rm, "lo": rlo if len(red) > 1 else None,
+        label, unit, scale = _parameter_words(n)
+        rm, rlo, rhi, cm = (None if x is None else x * scale for x in (rm, rlo, rhi, cm))
+        rows.append({"name": n, "label": label, "unit": unit, "reduced": rm, "lo": rlo if len(red) > 1 else None,
                      "hi": rhi if len(red) > 1 else None, "corrected": cm, "change": change,
                      "change_text": percent(change) if change is not None else ""})
     return {"rows": rows, "corrected": bool(cor), "n": len(red)}
+
+
+# The reduced fit's structural values besides the parameters: (words, unit, factor from SI)
+STRUCTURE = {"onset_delay_s": ("onset delay", "ms", 1e3), "alpha0": ("buffer engagement angle α₀", "rad", 1.0),
+             "alpha_0": ("buffer engagement angle α₀", "rad", 1.0)}
+STATUS_WORDS = {"none": "no unmodelled effect", "named": "named", "ambiguous": "ambiguous",
+                "unexplained": "unexplained: nothing catalogued explains the gap", "explained": "explained",
+                "partly_explained": "partly explained"}
+
+
+def _parameter_words(name: str) -> tuple[str, str, float]:
+    """(label, unit, factor) of a value in the parameters table: "buffer damping (DO)", "s⁻¹", 1."""
+    from service.display import parameter_label, unit
+
+    if name in STRUCTURE:
+        return STRUCTURE[name]
+    return parameter_label(name), unit(name), 1.0
 
 
 def view(r: dict | None) -> dict | None:
@@ -139,9 +158,13 @@ def view(r: dict | None) -> dict | None:
                  "bias_text": [f"{k} {percent(x)}" for k, x in (e.get("bias") or {}).items() if _num(x) is not None]}
                 for e in mat.get("effects") or [] if isinstance(e, dict)]
     names |= {m["effect"] for m in material}
+    names |= {x for m in nxt for x in m["separates"]}
+    for w in where:
+        w["phase_words"] = w["phase"].replace("_", " ")
     disc = r.get("discrepancy") if isinstance(r.get("discrepancy"), dict) else {}
     peak = disc.get("peak") if isinstance(disc.get("peak"), dict) else {}
-    return {"status": status, "effects": [str(e) for e in effects], "probabilities": probabilities,
+    return {"status": status, "status_words": STATUS_WORDS.get(status, status.replace("_", " ")),
+            "effects": [str(e) for e in effects], "probabilities": probabilities,
             "answer": str(r["answer"]) if r.get("answer") else None,
             "answer_probability": _num(r.get("answer_probability")),
             "raw_probability": _num(r.get("raw_probability")),

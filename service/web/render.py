@@ -2,13 +2,18 @@
 
 from __future__ import annotations
 
-import math
 from datetime import datetime, timezone
 from pathlib import Path
 
 from fastapi import Request
 from fastapi.templating import Jinja2Templates
 from jinja2 import Environment, FileSystemLoader, select_autoescape
+
+# significant and signed_change are imported from here by their tests
+from service.display import (finite, parameter_label, parameter_name, plural, quantity, significant,  # noqa: F401
+                             signed_change, signed_number, unit, watched_words)
+
+from service.findings import likely_cause
 
 HERE = Path(__file__).resolve().parent
 
@@ -33,71 +38,16 @@ def _iso(t: datetime | None) -> str:
     return t.astimezone(timezone.utc).isoformat().replace("+00:00", "Z")
 
 
-def _finite(v) -> float | None:
-    """``v`` as a finite float, or None (no number, NaN, infinite)."""
-    try:
-        v = float(v)
-    except (TypeError, ValueError):
-        return None
-    return v if math.isfinite(v) else None
-
-
 def _num(v, digits: int = 4) -> str:
-    """A number with ``digits`` significant digits, or a dash."""
-    v = _finite(v)
-    if v is None:
-        return "—"
-    return f"{v:.{digits}g}" if abs(v) < 1e5 else f"{v:.{digits}e}"
+    """A number with ``digits`` significant digits in plain notation, or a dash."""
+    return significant(v, digits, grouping=True)
 
 
 def _fixed(v, decimals: int = 2, scale: float = 1.0) -> str:
+    v = finite(v)
     if v is None:
         return "—"
-    try:
-        v = float(v) * scale
-    except (TypeError, ValueError):
-        return "—"
-    return f"{v:.{decimals}f}" if math.isfinite(v) else "—"
-
-
-def significant(v, digits: int = 3) -> str:
-    """``v`` to ``digits`` significant figures in plain notation (3419.9 -> "3420", 3.70406 -> "3.70"),
-    a minus sign for negatives, a dash for no number."""
-    v = _finite(v)
-    if v is None:
-        return "—"
-    if v == 0:
-        return "0"
-    decimals = max(0, digits - 1 - math.floor(math.log10(abs(v))))
-    text = f"{round(v, decimals):.{decimals}f}"
-    return "0" if float(text) == 0 else text.replace("-", "−")
-
-
-def signed_change(rel, decimals: int = 1) -> str:
-    """A relative change as a signed percentage ("−5.0 %", "+0.3 %"); one that rounds to zero is
-    "0.0 %", never "−0.0 %"."""
-    rel = _finite(rel)
-    if rel is None:
-        return "—"
-    pct = round(rel * 100, decimals)
-    if pct == 0:
-        return f"{0:.{decimals}f} %"
-    return f"{pct:+.{decimals}f} %".replace("-", "−")
-
-
-def signed_number(v, decimals: int = 2) -> str:
-    """A signed number ("+0.42", "−1.30", "0.00": never "−0.00"), a dash for no number."""
-    v = _finite(v)
-    if v is None:
-        return "—"
-    text = f"{v:+.{decimals}f}"
-    return f"{0:.{decimals}f}" if float(text) == 0 else text.replace("-", "−")
-
-
-def _unit(name: str) -> str:
-    from service.mechanics.nomenclature import UNITS
-
-    return UNITS.get(name, "")
+    return f"{v * scale:.{decimals}f}".replace("-", "−")
 
 
 def _pct_half_width(value, ci) -> str:
@@ -116,7 +66,9 @@ def build_templates() -> Jinja2Templates:
 
     # nopath: server paths cut to file names in what the page shows (D11, docs/security.md)
     env.filters.update(utc=_utc, iso=_iso, num=_num, fixed=_fixed, pct=_pct_half_width, nopath=redact_paths,
-                       sig=significant, change=signed_change, unit=_unit, signed=signed_number)
+                       sig=significant, change=signed_change, unit=unit, signed=signed_number,
+                       label=parameter_label, pname=parameter_name, quantity=quantity, plural=plural,
+                       cause=likely_cause, watched=watched_words)
     return Jinja2Templates(env=env)
 
 

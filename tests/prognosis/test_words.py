@@ -17,9 +17,9 @@ def base(**kw):
 
 
 def test_a_crossed_limit_reads_as_the_issue_asks():
-    assert words.summary(base()) == ("Buffer damping DO crossed its limit: 24.0 s⁻¹ now; limit 31.8 s⁻¹, 25 % below "
+    assert words.summary(base()) == ("Buffer damping (DO) crossed its limit: trend level 24.0 s⁻¹; limit 31.8 s⁻¹, 25 % below "
                                      "its baseline of 42.4 s⁻¹. Service the buffer (oil level and seals).")
-    assert words.fleet_text(base()) == "buffer damping DO: limit crossed, service due"
+    assert words.fleet_text(base()) == "buffer damping (DO): limit crossed, service due"
 
 
 def test_a_crossing_ahead_has_whole_openings_dates_and_both_limits():
@@ -29,20 +29,20 @@ def test_a_crossing_ahead_has_whole_openings_dates_and_both_limits():
              date_to_limit={"p05": "2027-01-01T00:00:00+00:00", "median": "2027-05-10T12:00:00+00:00",
                             "p95": "2028-09-01T00:00:00+00:00"})
     text = words.summary(p)
-    assert text.startswith("Opening spring factor BO reaches its limit in about 251 openings, around 2027-05-10 "
+    assert text.startswith("Opening spring force (BO) reaches its limit in about 251 openings, around 2027-05-10 "
                            "(90 %: 2027-01-01 – 2028-09-01); 90 % interval 120–612 openings."), text
     assert "limits 4,325 s⁻² and 5,287 s⁻², 10 % below and 10 % above its baseline of 4,806 s⁻²" in text
-    assert words.fleet_text(p) == "opening spring factor BO: limit in about 251 openings (around 2027-05-10)"
+    assert words.fleet_text(p) == "opening spring force (BO): limit in about 251 openings (around 2027-05-10)"
 
 
 def test_no_trend_is_not_a_due_date():
     p = base(status="no trend", current=42.3, operations_to_limit={"p05": 1318.7, "median": None, "p95": None},
              date_to_limit={"p05": "2030-03-01T00:00:00+00:00", "median": None, "p95": None})
     text = words.summary(p)
-    assert text.startswith("Buffer damping DO: no trend. 42.3 s⁻¹ now; limit 31.8 s⁻¹")
+    assert text.startswith("Buffer damping (DO): no trend. Trend level 42.3 s⁻¹; limit 31.8 s⁻¹")
     assert "not expected to reach its limit within 10 years at this rate" in text
     assert "At the earliest (5 %): in 1,319 openings, 2030-03-01." in text
-    assert words.fleet_text(p) == "buffer damping DO: no trend, not within 10 years"
+    assert words.fleet_text(p) == "buffer damping (DO): no trend, not within 10 years"
 
 
 def test_values_have_three_significant_figures_and_a_minus_sign():

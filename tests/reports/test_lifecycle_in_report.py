@@ -50,7 +50,7 @@ def test_the_lifecycle_and_the_shelve_are_in_the_report(tmp_path):
         return re.sub(r"\s+", " ", out.stdout.decode())
 
     before = report_text()
-    assert "Alarms ALARM: 1 active (DO alarm)" in before
+    assert "Alarms ALARM: 1 active (buffer damping (DO) alarm)" in before
     with Session() as s, s.begin():
         alarm = crud.list_alarms(s, state="active", breaker_id=1)[0]
         crud.acknowledge_alarm(s, alarm=alarm, by="j.smith", comment="buffer checked on site")
@@ -58,10 +58,10 @@ def test_the_lifecycle_and_the_shelve_are_in_the_report(tmp_path):
         shelve(s, alarm=alarm, by="a.jones", minutes=120, reason="buffer replacement booked")
         alarm_id = alarm.id
     after = report_text()
-    assert "Alarms none annunciated: 1 active, all shelved (DO alarm (shelved))" in after
+    assert "Alarms none annunciated: 1 active, all shelved (buffer damping (DO) alarm (shelved))" in after
     assert "acknowledged (shelved until" in after
     assert re.search(r"by j\.smith \(buffer checked on site\)", after)
-    assert re.search(rf"#{alarm_id} DO ALARM acknowledged raised .* shelve\w* .* by a\.jones \(buffer replacement booked\)",
+    assert re.search(rf"#{alarm_id} buffer damping \(DO\) ALARM acknowledged raised .* shelve\w* .* by a\.jones \(buffer replacement booked\)",
                      after)
 
 

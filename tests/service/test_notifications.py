@@ -226,7 +226,7 @@ def test_email_over_starttls_with_login_and_routing_filters(tmp_path, db_url):
         assert smtp.logins == [SmtpReceiver.user]
         assert "WARNING raised" in mail["Subject"] and "reference-252kV" in mail["Subject"]
         assert mail["To"] == "asset.engineer@utility.example"
-        assert "buffer damping factor DO falling" in mail.get_payload(decode=True).decode()
+        assert "buffer damping (DO) falling" in mail.get_payload(decode=True).decode()
         assert other.requests == [], "a filtered route was sent the event"
     finally:
         smtp.stop()
@@ -250,7 +250,7 @@ def test_a_chat_route_through_apprise_posts_the_text(tmp_path, db_url):
         chat.stop()
     assert len(posted) == 1
     assert posted[0]["title"].startswith("[hvcb] WARNING raised: reference-252kV (Q1) DO")
-    assert "buffer damping factor DO falling" in posted[0]["message"]
+    assert "buffer damping (DO) falling" in posted[0]["message"]
 
 
 def test_events_are_written_with_their_transition_and_rolled_back_with_it(tmp_path, db_url):

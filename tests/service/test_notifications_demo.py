@@ -44,13 +44,13 @@ def test_an_alarm_raised_on_the_demo_reaches_email_and_webhook_signed(tmp_path, 
     ev = raised[0]
     assert ev["alarm"]["id"] == alarm["id"] and ev["parameter"] == "DO"
     assert ev["breaker"]["name"] == "reference-252kV" and ev["breaker"]["tag"] == "Q1"
-    assert "buffer damping factor DO falling" in ev["alarm"]["message"]
+    assert "buffer damping (DO) falling" in ev["alarm"]["message"]
     assert ev["alarm"]["operation_id"] is not None
     check_signed(hook)  # HMAC over timestamp + body verifies; schema-valid; idempotency key
     mail = smtp.messages[0]
     assert "raised" in mail["Subject"] and "reference-252kV (Q1) DO" in mail["Subject"]
     text = mail.get_payload(decode=True).decode()
-    assert ev["id"] in text and "http://127.0.0.1:8000/breakers/1" in text and "buffer damping factor DO" in text
+    assert ev["id"] in text and "http://127.0.0.1:8000/breakers/1" in text and "buffer damping (DO)" in text
     ids = mail["X-Hvcb-Events"].split(",")
     assert ids[0] == ev["id"]  # the alarm's first event is the first mail's first
     if len(ids) == 1:

@@ -44,7 +44,7 @@ def test_reader_diagnoses_the_last_operations_and_sees_the_result(live, browser)
         section = page.locator("#breaker-diagnosis")
         assert section.get_attribute("data-bdiag-status") == "done"
         assert "3 stored openings used of the last 3" in page.locator("#bdiag-summary").inner_text()
-        status = page.locator("#bdiag-status").inner_text().strip()
+        status = page.locator("#bdiag-status").get_attribute("data-status")
         assert status in ("none", "named", "ambiguous", "unexplained", "explained", "partly_explained")
         # where: one bar per phase before the correction (four phases of an opening)
         assert section.locator("svg.bdiag-bars rect.bar-before").count() == 4

@@ -75,12 +75,12 @@ def test_template_draws_every_part_escaped():
     assert "<script>" not in html and "&lt;script&gt;x()&lt;/script&gt;" in html
     assert "<b>odd</b>" not in html and "&lt;b&gt;odd&lt;/b&gt;" in html
     assert html.count('class="bar bar-before"') == 2 and html.count('class="bar-after"') == 2
-    assert "10 openings below 0 °C" in html and "-14.2" in html
+    assert "10 openings below 0 °C" in html and "−14.2" in html
     assert 'Rivals: <span title="sensor_nonlinearity">travel-sensor nonlinearity</span> (0.050)' in html
     assert 'title="puffer_gas">puffer gas compression' in html and "two effects at once" in html
     assert "DO +2.1 %" in html and "-0.0 %" not in html
     assert ('title="orifice_buffer+viscous_friction">orifice buffer (damping ∝ speed²) + viscous bearing friction'
-            '</strong>, probability <span id="bdiag-probability">0.900</span>') in html
+            '</strong></span><span class="small"> (probability <span id="bdiag-probability">0.900</span>') in html
     assert "Present but mild" not in html          # no size gate: materiality is a flag beside the answer
     assert 'id="bdiag-before">3.000<' in html and 'id="bdiag-after">1.600<' in html
     assert "<th>Corrected</th>" in html and "bdiag-no-correction" not in html

@@ -87,7 +87,6 @@ def test_sign_in_then_the_fleet_shows_the_breaker_with_its_status(live, ctx):
     assert live.keys["reader"] not in page.content() and live.keys["reader"] not in page.url
     assert page.evaluate("() => localStorage.length + sessionStorage.length") == 0
     assert not page.evaluate("() => document.cookie.includes('hvcb_session')")
-    screenshot(page, "fleet")
     # the API docs are served from the app's own vendored Swagger UI: they render offline
     docs = log.watch(context.new_page())
     docs.goto(live.base + "/docs")
@@ -144,7 +143,6 @@ def test_operation_page_shows_curve_residual_and_diagnosis(live, ctx):
     assert verdict
     assert page.locator("table.candidates tbody tr").count() >= 3
     assert page.locator("svg.bars rect.bar-before").count() == 4  # four phases of an opening (bars before; after when corrected)
-    screenshot(page, "operation")
     clean(log)
 
 

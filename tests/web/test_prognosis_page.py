@@ -32,11 +32,11 @@ def test_breaker_page_draws_the_fan_chart_and_the_fleet_lists_the_soonest_limit(
     try:
         page = sign_in(context, live, "reader", log)
         fleet = page.locator("#fleet-rows tr").first.locator(".soonest-cell").inner_text()
-        assert fleet.startswith("buffer damping DO: limit in about ") and "openings" in fleet, fleet
+        assert fleet.startswith("buffer damping (DO): limit in about ") and "openings" in fleet, fleet
         page.goto(f"{live.base}/breakers/1")
         page.wait_for_selector('[data-prognosis-param="DO"] canvas', timeout=30000)
         caption = page.locator('[data-prognosis-param="DO"] figcaption').inner_text()
-        assert caption.startswith("Buffer damping DO reaches its limit in about "), caption
+        assert caption.startswith("Buffer damping (DO) reaches its limit in about "), caption
         assert "openings" in caption and "90 % interval" in caption and "25 % below its baseline of" in caption
         assert "Trend since the change point" in caption
         assert canvas_ink(page, '[data-prognosis-param="DO"]') > 1000  # band, median, limit line, fits

@@ -52,7 +52,7 @@ def test_the_setting_beside_the_fitted_parameters_and_the_commissioning_button(l
         assert card.locator("h2").first.inner_text() == "Fitted parameters"  # beside them, in their card
         s = _setting(page)
         # from the design seat: 3 steps plus the unit's unseen +1 % kO (0.42 + 0.03 steps)
-        assert s["steps"] == "+3.45" and s["ci"].startswith("95 %: +") and "not read" in s["basis"]
+        assert s["steps"] == "+3.45" and s["ci"].startswith("95 %: +") and "not known" in s["basis"] and "commissioning pair" in s["basis"]
         lo, hi = (float(x.replace("−", "-")) for x in s["ci"].removeprefix("95 %: ").split(" – "))
         assert lo < 3.0 < hi
         page.goto(f"{live.base}/operations/{live.ref[1]}")

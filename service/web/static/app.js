@@ -29,6 +29,11 @@
   // -- chart helpers ---------------------------------------------------------------------------
   function widthOf(el) { return Math.max(280, Math.floor(el.getBoundingClientRect().width || 400)); }
 
+  // uPlot draws axis titles on its canvas: the container names them too, for assistive tools and tests
+  function axisLabels(el, opts) {
+    el.setAttribute("data-axis-labels", (opts.axes || []).map(function (a) { return a.label || ""; }).join("|"));
+  }
+
   function draw(key, el, opts, data) {
     var old = charts[key];
     if (old && old.root.parentNode === el) {
@@ -39,6 +44,7 @@
     el.textContent = "";
     opts.width = widthOf(el);
     var u = new uPlot(opts, data, el);
+    axisLabels(el, opts);
     charts[key] = u;
     return u;
   }
@@ -98,7 +104,9 @@
     });
   }
 
-  var TIME_AXIS = { values: utcTicks, space: 70 };
+  var TIME_AXIS = { values: utcTicks, space: 70, label: "time (UTC)", labelSize: 16 };
+  // a dimensionless parameter (BC, an inertia ratio) is labelled as what it is
+  function unitWord(unit) { return !unit || unit === "–" || unit === "-" ? "ratio" : unit; }
   var UTC = function (ts) { return uPlot.tzDate(new Date(ts * 1000), "Etc/UTC"); };
 
   function hideLegendEntries(u, labels) {
@@ -125,7 +133,7 @@
     box.classList.remove("empty");
     var series = [{},
       { label: name, stroke: COLORS.line, width: 1.5, points: { show: p.t.length < 120, size: 4 },
-        value: function (u, v) { return fmt(v, 6) + " " + p.unit; } },
+        value: function (u, v) { return fmt(v, 5) + " " + unitWord(p.unit); } },
       { label: "95 % CI", stroke: COLORS.bandEdge, width: 0.5, points: { show: false } },
       { label: "95 % CI (lower)", stroke: COLORS.bandEdge, width: 0.5, points: { show: false } }];
     var data = [p.t, p.value, p.hi, p.lo];
@@ -135,7 +143,7 @@
     }
     var opts = { height: 190, series: series, legend: { live: false }, tzDate: UTC,
       scales: { x: { time: true } },
-      axes: [TIME_AXIS, { size: 64, label: p.unit, labelSize: 16 }],
+      axes: [TIME_AXIS, { size: 64, label: name + " [" + unitWord(p.unit) + "]", labelSize: 16 }],
       bands: [{ series: [2, 3], fill: COLORS.band }],
       cursor: { sync: { key: "breaker" } },
       hooks: { draw: [markerHook(p.alarms || [])] } };
@@ -187,7 +195,7 @@
     box.classList.remove("empty");
     var data = tables.length === 1 ? tables[0] : uPlot.join(tables);
     var opts = { height: 170, series: series, scales: { x: { time: true } }, legend: { live: false }, tzDate: UTC,
-      axes: [TIME_AXIS, { size: 64, label: unit, labelSize: 16 }], cursor: { sync: { key: "breaker" } } };
+      axes: [TIME_AXIS, { size: 64, label: label + " [" + unit + "]", labelSize: 16 }], cursor: { sync: { key: "breaker" } } };
     var u = draw("char-" + key, el, opts, data);
     hideLegendEntries(u, ["Time"]);
   }
@@ -294,8 +302,10 @@
       var vt = j.vibration.t.map(function (v) { return v * 1e3; });
       draw("vibration", vEl, { height: 180,
         series: [{ label: "t [ms]", value: function (u, v) { return v == null ? "—" : v.toFixed(3) + " ms"; } },
-          { label: "max", stroke: COLORS.vib, width: 1, points: { show: false } },
-          { label: "min", stroke: COLORS.vib, width: 1, points: { show: false } }],
+          { label: "max", stroke: COLORS.vib, width: 1, points: { show: false },
+            value: function (u, v) { return v == null ? "—" : fmt(v, 3) + " g"; } },
+          { label: "min", stroke: COLORS.vib, width: 1, points: { show: false },
+            value: function (u, v) { return v == null ? "—" : fmt(v, 3) + " g"; } }],
         bands: [{ series: [1, 2], fill: COLORS.vibBand }],
         scales: { x: { time: false } },
         axes: [{ label: "time [ms]", labelSize: 18 }, { size: 60, label: "vibration [g]", labelSize: 16 }],

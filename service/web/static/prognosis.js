@@ -28,9 +28,9 @@
     var data = [xs, on(f.observed.operations, obs), on(f.operations, f.p05),
       on(f.operations, f.median), on(f.operations, f.p95)];
     var series = [{},
-      { label: "observed (latest " + val(last, par) + ")", stroke: "#555", width: 0, points: { show: true, size: 4 } },
+      { label: "fits, compensated (latest " + val(last, par) + ")", stroke: "#555", width: 0, points: { show: true, size: 4 } },
       { label: "5 %", stroke: "#7aa6d6", dash: [4, 4], spanGaps: true },
-      { label: "median (now " + val(p.current, par) + ")", stroke: "#1f5fa8", width: 2, spanGaps: true },
+      { label: "median (trend level " + val(p.current, par) + ")", stroke: "#1f5fa8", width: 2, spanGaps: true },
       { label: "95 %", stroke: "#7aa6d6", dash: [4, 4], spanGaps: true }];
     // every limit of the breaker file: both sides of a two-sided limit
     var limits = (p.limits && p.limits.length) ? p.limits : [{ direction: p.direction, value: p.limit }];
@@ -46,11 +46,12 @@
       // no live legend: without a hovered point it would read "--"; the labels carry the values
       legend: { live: false },
       axes: [{ label: "openings since the trend's start" },
-        { label: par + " (compensated)" + (UNIT[par] ? " [" + UNIT[par] + "]" : ""), size: 70 }],
+        { label: par + ", compensated" + (UNIT[par] ? " [" + UNIT[par] + "]" : ""), size: 70 }],
       series: series,
       bands: [{ series: [4, 2], fill: "rgba(31,95,168,0.15)" }]
     };
     new uPlot(opts, data, box);
+    box.setAttribute("data-axis-labels", opts.axes.map(function (a) { return a.label || ""; }).join("|"));
   }
 
   function load(section) {

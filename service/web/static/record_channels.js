@@ -59,6 +59,7 @@
       data.push(series[n].values);
     });
     charts[key] = new uPlot(opts, data, el);
+    el.setAttribute("data-axis-labels", opts.axes.map(function (a) { return a.label || ""; }).join("|"));
   }
 
   function comparison(rows) {
