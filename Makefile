@@ -8,7 +8,7 @@ PY     := $(VENV)/bin/python
 PIP    := $(PY) -m pip install -q --disable-pip-version-check
 CORE   := $(VENV)/.installed-core
 FULL   := $(VENV)/.installed-test
-TEST_EXTRAS ?= dev,studies,iec61850,plots,docs,notify
+TEST_EXTRAS ?= dev,studies,iec61850,docs,notify
 RUN_ARGS ?=
 
 .PHONY: run test setup bench docs docs-serve screenshots clean
