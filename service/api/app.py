@@ -75,7 +75,14 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
     from service.workers.breaker_diagnoses import BreakerDiagnosisRunner
     from service.workers.diagnoses import DiagnosisRunner
 
+    from service.notifications.routes import from_section
+
     from .daq import ServiceDaqs
+
+    # The sections their own packages read: refused here, at start, in words (loading the
+    # settings checks neither, so a command that needs neither starts at once).
+    notification_settings = from_section(settings.notifications)
+    settings.drift_settings  # noqa: B018  (the [alarms] section checked, its thresholds designed once)
 
     @asynccontextmanager
     async def lifespan(app: FastAPI):
@@ -117,7 +124,7 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
         from service.notifications.notifier import Notifier
 
         capture_notifications()  # alarm transitions write their events (also via crud in this process)
-        app.state.notifier = Notifier(settings.notifications, Session)  # [notifications] routes
+        app.state.notifier = Notifier(app.state.notification_settings, Session)  # [notifications] routes
         if start_monitor:
             app.state.notifier.start()
         app.state.iec61850 = None
@@ -162,6 +169,7 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
                   description="Condition monitor for spring-operated HV circuit-breaker mechanisms. "
                               "Send an API key in X-API-Key. Times are UTC ISO-8601 with Z.")
     app.state.settings = settings
+    app.state.notification_settings = notification_settings
     app.state.key_cache = KeyCache()
     app.state.auth_throttle = AuthThrottle.from_settings(settings.server)
     app.state.upload_slots = None  # an asyncio.Semaphore made on first upload (it needs the loop)

@@ -5,16 +5,11 @@ from __future__ import annotations
 import json
 import sys
 
-from drivers.capture import CaptureError
-from ..acquisition.capture_file import breaker_reading, read_capture
-from ..breaker_file import BreakerFileError, load_breaker
+from service.arguments import rate_hz  # (--rate)
+
 from ..errors import UserError
-from .fit import fit_capture
-from .window import FitError
 
 DEFAULT_BREAKER = "config/breakers/reference-252kV.toml"
-
-from service.arguments import rate_hz  # noqa: E402  (--rate)
 
 
 def register(subparsers) -> None:
@@ -35,6 +30,14 @@ def register(subparsers) -> None:
 
 
 def run_fit(args) -> int:
+    # Imported here, not at the top: `hvcb fit --help` must not load CMA-ES, scipy and numba.
+    from drivers.capture import CaptureError
+
+    from ..acquisition.capture_file import breaker_reading, read_capture
+    from ..breaker_file import BreakerFileError, load_breaker
+    from .fit import fit_capture
+    from .window import FitError
+
     try:
         breaker = load_breaker(args.breaker)
         capture = read_capture(args.capture, **breaker_reading(breaker), rate=args.rate)
