@@ -31,7 +31,7 @@ NOT_FOUND = {404: {"model": Message}}
 
 class BreakerDiagnosisCreate(BaseModel):
     operation: Literal["open", "close"] = Field(description="which stored operations: openings or closings")
-    last: int = Field(10, description=f"how many of the newest usable ones, {MIN_LAST} to {MAX_LAST}",
+    last: int = Field(10, strict=True, description=f"how many of the newest usable ones, {MIN_LAST} to {MAX_LAST}",
                       json_schema_extra={"minimum": MIN_LAST, "maximum": MAX_LAST})
 
 

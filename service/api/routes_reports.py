@@ -8,33 +8,22 @@ from typing import Annotated
 
 from fastapi import APIRouter, HTTPException, Path as PathParam, Query, Request
 from fastapi.responses import Response, StreamingResponse
-from pydantic import BeforeValidator
 
 from service.reports.exports import alarm_chunks, file_name, operation_chunks
 from service.reports.window import Window
 
 from . import schemas as s
 from .deps import ReaderDep, SessionDep, SettingsDep
+from .refs import IsoOnly
 from .routes_alarms import _breaker_ref
 
 router = APIRouter(prefix="/api/v1", tags=["reports"])
 BreakerRef = Annotated[str, PathParam(min_length=1, max_length=120, description="breaker name, tag or id")]
 
 
-def _iso_only(v):
-    """The schema says an ISO 8601 date-time: a bare number (pydantic's Unix time) is refused."""
-    if isinstance(v, str):
-        try:
-            float(v)
-        except ValueError:
-            return v
-        raise ValueError("an ISO 8601 date-time is expected (e.g. 2026-11-28T08:00:00Z), not a number")
-    return v
-
-
-From = Annotated[datetime | None, BeforeValidator(_iso_only),
+From = Annotated[datetime | None, IsoOnly,
                  Query(alias="from", description="operations at or after (ISO 8601; UTC when no zone)")]
-To = Annotated[datetime | None, BeforeValidator(_iso_only),
+To = Annotated[datetime | None, IsoOnly,
                Query(alias="to", description="operations at or before (ISO 8601; UTC when no zone)")]
 ERRORS = {401: {"model": s.Message}, 403: {"model": s.Message}, 404: {"model": s.Message},
           422: {"model": s.Message, "description": "`from` is after `to`"}}

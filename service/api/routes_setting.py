@@ -50,8 +50,10 @@ class Commissioning(BaseModel):
 
 
 class CommissionRequest(BaseModel):
-    operation_id: int = Field(ge=1, le=2**31 - 1, description="either half of the close–open pair")
-    known_steps: float = Field(ge=-50, le=50, description="its nut setting [steps from the design seat]")
+    # strict: a JSON number only (false is not 0 steps, "3" is not 3; the schema says number)
+    operation_id: int = Field(ge=1, le=2**31 - 1, strict=True, description="either half of the close–open pair")
+    known_steps: float = Field(ge=-50, le=50, strict=True, allow_inf_nan=False,
+                               description="its nut setting [steps from the design seat]")
 
 
 class SettingPublic(BaseModel):
