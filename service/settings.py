@@ -154,6 +154,8 @@ class ServerSettings(BaseModel):
     auth_delay_base_s: float = Field(0.5, gt=0, description="first throttling delay; doubles at each failure")
     auth_delay_max_s: float = Field(60.0, gt=0, description="longest throttling delay")
     auth_forget_s: float = Field(900.0, gt=0, description="an address without failures for this long starts afresh")
+    sqlite_busy_s: float = Field(10.0, gt=0, le=120, description="SQLite: a write waits this long for another "
+                                 "writer's lock before a bounded retry (docs/operations.md); WAL: reads never wait")
 
     @model_validator(mode="after")
     def _headroom(self):

@@ -93,11 +93,11 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
         srv = settings.server
         anyio.to_thread.current_default_thread_limiter().total_tokens = srv.threads
         app.state.priority_limiter = anyio.CapacityLimiter(4)
-        engine = make_engine(settings.sqlalchemy_url, pool_size=srv.pool_size)
+        engine = make_engine(settings.sqlalchemy_url, pool_size=srv.pool_size, sqlite_timeout_s=srv.sqlite_busy_s)
         check_schema(engine)
         Session = session_factory(engine)
         # /healthz, SCADA points and key checks: their own connections, never behind page loads
-        priority_engine = make_engine(settings.sqlalchemy_url, pool_size=4)
+        priority_engine = make_engine(settings.sqlalchemy_url, pool_size=4, sqlite_timeout_s=srv.sqlite_busy_s)
         app.state.PrioritySession = session_factory(priority_engine)
         key = bootstrap(settings, Session)
         if key and on_key:
