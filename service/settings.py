@@ -154,6 +154,8 @@ class ServerSettings(BaseModel):
     auth_delay_base_s: float = Field(0.5, gt=0, description="first throttling delay; doubles at each failure")
     auth_delay_max_s: float = Field(60.0, gt=0, description="longest throttling delay")
     auth_forget_s: float = Field(900.0, gt=0, description="an address without failures for this long starts afresh")
+    report_wait_s: float = Field(8.0, ge=0, le=60, description="GET .../report waits this long for the worker's "
+                                 "PDF, then answers 202 with the job (its URL gives the PDF when done)")
     sqlite_busy_s: float = Field(10.0, gt=0, le=120, description="SQLite: a write waits this long for another "
                                  "writer's lock before a bounded retry (docs/operations.md); WAL: reads never wait")
 
@@ -337,7 +339,7 @@ class Settings(BaseSettings):
         """The drift detector's settings (``[alarms]``), built and their CUSUM thresholds designed
         on first use, once per distinct section (loading the settings designs nothing: a command
         that needs no alarms never pays for it). Bad values raise ValueError in words."""
-        return _drift_settings(json.dumps(self.alarms, sort_keys=True, default=str))
+        return drift_settings_for(self.alarms)
 
     @property
     def capture_dir(self) -> Path:
@@ -350,6 +352,12 @@ class Settings(BaseSettings):
     @property
     def key_file(self) -> Path:
         return self.data_dir / "admin.key"
+
+
+def drift_settings_for(section: dict):
+    """The drift detector's settings of an ``[alarms]`` section (a worker process given only the
+    section), designed once per distinct section in this process."""
+    return _drift_settings(json.dumps(section, sort_keys=True, default=str))
 
 
 @functools.lru_cache(maxsize=16)

@@ -74,6 +74,7 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
     from service.workers import make_executor
     from service.workers.breaker_diagnoses import BreakerDiagnosisRunner
     from service.workers.diagnoses import DiagnosisRunner
+    from service.workers.reports import ReportRunner
 
     from service.notifications.routes import from_section
 
@@ -108,6 +109,7 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
         app.state.engine, app.state.Session, app.state.monitor, app.state.daq = engine, Session, monitor, daq
         app.state.diagnoses = DiagnosisRunner(settings.sqlalchemy_url)
         app.state.breaker_diagnoses = BreakerDiagnosisRunner(settings)
+        app.state.reports = ReportRunner(settings)  # condition reports: drawn in a worker process
         if start_monitor:
             monitor.start()
             try:
@@ -155,6 +157,7 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
                 app.state.iec61850.stop()
             app.state.diagnoses.shutdown()
             app.state.breaker_diagnoses.shutdown()
+            app.state.reports.shutdown()
             if start_monitor:
                 daq.stop()
                 monitor.stop()

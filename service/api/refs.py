@@ -23,7 +23,7 @@ def breaker_by_ref(session, ref: str) -> BreakerRow:
     if b is None and ref.isdigit() and 1 <= int(ref) <= MAX_ID:
         b = session.get(BreakerRow, int(ref))
     if b is None:
-        raise HTTPException(404, f"no breaker {ref!r} (give its id, name or tag)")
+        raise HTTPException(404, f"no breaker named {ref!r} (give its id, name or tag)")
     return b
 
 
