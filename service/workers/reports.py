@@ -9,7 +9,6 @@ tests' ``inline`` executor in a thread (no process to start)."""
 
 from __future__ import annotations
 
-import os
 import threading
 import time
 import uuid
@@ -19,10 +18,11 @@ from datetime import datetime
 
 from service.processes import process_pool
 
+from .priority import lower_priority
+
 REPORT_WORKERS = 1      # one report at a time: it is one core's work, and the machine has few
 KEEP_S = 600.0          # a finished report can be fetched this long [s]
 MAX_JOBS = 64           # at most this many jobs remembered (oldest finished ones forgotten first)
-NICE = 10               # the workers' CPU priority below the API's
 
 
 class ReportFailed(Exception):
@@ -51,10 +51,7 @@ def draw_report(database_url: str, alarms: dict, breaker_id: int, start: datetim
 
 
 def _lower_priority() -> None:
-    try:
-        os.nice(NICE)
-    except OSError:
-        pass
+    lower_priority()
     try:  # the report's modules loaded once per worker, before its first report
         import service.reports.content  # noqa: F401
         import service.reports.pdf  # noqa: F401
