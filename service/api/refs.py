@@ -20,7 +20,7 @@ BreakerRef = Annotated[str, PathParam(min_length=1, max_length=120, description=
 def breaker_by_ref(session, ref: str) -> BreakerRow:
     """The breaker whose name or tag is ``ref``, else whose id it is; 404 in words when none is."""
     b = session.scalar(select(BreakerRow).where(or_(BreakerRow.name == ref, BreakerRow.tag == ref)))
-    if b is None and ref.isdigit() and 1 <= int(ref) <= MAX_ID:
+    if b is None and ref.isascii() and ref.isdigit() and 1 <= int(ref) <= MAX_ID:  # not "¹": isdigit, no int
         b = session.get(BreakerRow, int(ref))
     if b is None:
         raise HTTPException(404, f"no breaker named {ref!r} (give its id, name or tag)")
@@ -41,3 +41,17 @@ def iso_only(v):
 
 
 IsoOnly = BeforeValidator(iso_only)
+
+
+def number_only(v):
+    """The schema says a JSON number: true/false and strings are refused in words (pydantic's lax
+    mode would read false as 0 and "3" as 3). An integer field still takes 3.0, which JSON Schema
+    counts as an integer."""
+    if isinstance(v, bool):
+        raise ValueError(f"a number is expected, not {str(v).lower()}")
+    if isinstance(v, (str, bytes)):
+        raise ValueError(f"a number is expected, not the string {v!r}")
+    return v
+
+
+NumberOnly = BeforeValidator(number_only)
