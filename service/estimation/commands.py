@@ -68,6 +68,12 @@ def format_fit(result) -> str:
         lo, hi = result.ci95[name]
         pct = 100 * (hi - lo) / 2 / abs(value) if value else float("nan")
         lines.append(f"{name:<6}{value:>14.4f}{f'[{lo:.4f}, {hi:.4f}]':>30}{pct:>8.3f}")
+    n = result.interval_noise or {}
+    if n.get("basis") == "residual in motion":
+        widest = max(n["widening"].items(), key=lambda kv: kv[1])
+        lines.append(f"95% CI from the residual in motion (its AR({n['ar_order']}) correlation, "
+                     f"{n['band_rad'] * 1e3:.3f} mrad rms): up to {widest[1]:.1f}x the idle-noise "
+                     f"interval ({widest[0]})")
     if result.operation == "close":
         lines.append(f"DC = {result.dc_used:.2f} s^-2 from the {result.dc_source}")
     for name, est in result.structure.items():
