@@ -60,7 +60,7 @@ PDF = {"content": {"application/pdf": {"schema": {"type": "string", "format": "b
 JOB = {"model": ReportJobPublic, "description": "the report is being drawn: fetch `url` (Location) later",
        "headers": {"Location": {"schema": {"type": "string"}, "description": "the job's URL"},
                    "Retry-After": {"schema": {"type": "integer"}, "description": "seconds"}}}
-FAILED = {"model": s.Message, "description": "the report could not be drawn (why, in words)"}
+FAILED = {"model": s.Message, "description": "the report could not be drawn, or too many wait (why, in words)"}
 JobId = Annotated[str, PathParam(pattern=r"^[0-9a-f]{32}$", description="report job id")]
 
 
@@ -88,9 +88,14 @@ async def _submit_job(request: Request, name: str, window: Window):
             b = _breaker_ref(session, name)
             return b.id, b.name
 
+    from service.workers.reports import ReportsBusy
+
     breaker_id, breaker_name = await run_in_threadpool(find)
-    return request.app.state.reports.submit(breaker_id=breaker_id, breaker_name=breaker_name,
-                                            start=window.start, end=window.end)
+    try:
+        return request.app.state.reports.submit(breaker_id=breaker_id, breaker_name=breaker_name,
+                                                start=window.start, end=window.end)
+    except ReportsBusy as exc:
+        raise HTTPException(503, str(exc), headers={"Retry-After": "60"}) from None
 
 
 @router.get("/breakers/{name}/report", response_class=Response, responses={
@@ -114,7 +119,7 @@ async def breaker_report(name: BreakerRef, request: Request, _: ReaderDep, start
 
 
 @router.post("/breakers/{name}/reports", response_model=ReportJobPublic, status_code=202,
-             responses={**ERRORS, 202: JOB})
+             responses={**ERRORS, 202: JOB, 503: {"model": s.Message, "description": "too many reports waiting"}})
 async def request_report(name: BreakerRef, request: Request, _: ReaderDep, start: From = None, end: To = None):
     """Ask for the breaker's condition report; the answer comes at once with the job. GET its
     ``url`` for the PDF (202 while it is drawn)."""

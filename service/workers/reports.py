@@ -23,10 +23,15 @@ from .priority import lower_priority
 REPORT_WORKERS = 1      # one report at a time: it is one core's work, and the machine has few
 KEEP_S = 600.0          # a finished report can be fetched this long [s]
 MAX_JOBS = 64           # at most this many jobs remembered (oldest finished ones forgotten first)
+MAX_PENDING = 16        # reports queued or being drawn at once; beyond: refused (busy), not queued
 
 
 class ReportFailed(Exception):
     """The report could not be drawn; the message says why, in words."""
+
+
+class ReportsBusy(Exception):
+    """``MAX_PENDING`` reports are already queued or being drawn; the message says so."""
 
 
 def draw_report(database_url: str, alarms: dict, breaker_id: int, start: datetime | None,
@@ -101,6 +106,10 @@ class ReportRunner:
             for job in self._jobs.values():
                 if (job.breaker_id, job.start, job.end) == (breaker_id, start, end) and not job.future.done():
                     return job
+            pending = sum(not j.future.done() for j in self._jobs.values())
+            if pending >= MAX_PENDING:
+                raise ReportsBusy(f"{pending} condition reports are being drawn or wait their turn: "
+                                  "ask again in a minute")
             if self._pool is None:
                 if self.kind == "inline":
                     self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="ThreadPoolExecutor-report")

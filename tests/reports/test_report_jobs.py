@@ -88,3 +88,21 @@ def test_the_web_pages_report_button_still_downloads_the_pdf(svc):
                        follow_redirects=False).status_code == 303
     r = client.get("/breakers/1/report.pdf")
     assert r.status_code == 200 and r.content[:5] == b"%PDF-"
+
+
+def test_too_many_waiting_reports_are_refused_in_words_not_queued(svc, monkeypatch):
+    import threading
+
+    from service.workers import reports as R
+
+    app, client, h, _ = svc
+    gate = threading.Event()
+    monkeypatch.setattr(R, "MAX_PENDING", 2)
+    monkeypatch.setattr(R, "draw_report", lambda *a, **k: (gate.wait(60), (b"%PDF-", "x"))[1])
+    try:
+        assert client.post("/api/v1/breakers/Q1/reports", params={"from": "2026-01-01"}, headers=h).status_code == 202
+        assert client.post("/api/v1/breakers/Q1/reports", params={"from": "2026-01-02"}, headers=h).status_code == 202
+        r = client.post("/api/v1/breakers/Q1/reports", params={"from": "2026-01-03"}, headers=h)
+        assert r.status_code == 503 and "wait their turn" in r.json()["detail"] and r.headers["Retry-After"]
+    finally:
+        gate.set()
