@@ -10,6 +10,8 @@ Environment variables: ``HVCB_DATA_DIR``, ``DATABASE_URL`` (or ``HVCB_DATABASE_U
 from __future__ import annotations
 
 import contextvars
+import functools
+import json
 import logging
 from pathlib import Path
 from typing import Literal
@@ -17,8 +19,6 @@ from typing import Literal
 from pydantic import AliasChoices, BaseModel, Field, field_validator, model_validator
 from pydantic_settings import (BaseSettings, PydanticBaseSettingsSource, SettingsConfigDict,
                                TomlConfigSettingsSource)
-
-from service.notifications.routes import NotificationSettings
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_CONFIG = REPO_ROOT / "config" / "default.toml"
@@ -154,6 +154,10 @@ class ServerSettings(BaseModel):
     auth_delay_base_s: float = Field(0.5, gt=0, description="first throttling delay; doubles at each failure")
     auth_delay_max_s: float = Field(60.0, gt=0, description="longest throttling delay")
     auth_forget_s: float = Field(900.0, gt=0, description="an address without failures for this long starts afresh")
+    report_wait_s: float = Field(8.0, ge=0, le=60, description="GET .../report waits this long for the worker's "
+                                 "PDF, then answers 202 with the job (its URL gives the PDF when done)")
+    sqlite_busy_s: float = Field(10.0, gt=0, le=120, description="SQLite: a write waits this long for another "
+                                 "writer's lock before a bounded retry (docs/operations.md); WAL: reads never wait")
 
     @model_validator(mode="after")
     def _headroom(self):
@@ -246,10 +250,12 @@ class Settings(BaseSettings):
     retention: RetentionSettings = Field(default_factory=RetentionSettings,
                                          description="raw-capture retention ([retention] table)")
     alarms: dict = Field(default_factory=dict, description="drift detector settings, see docs/alarms.md "
-                         "(service.alarms.settings.DriftSettings)")
-    notifications: NotificationSettings = Field(
-        default_factory=NotificationSettings,
-        description="where alarm and prognosis events are sent ([notifications], docs/notifications.md)")
+                         "(service.alarms.settings.DriftSettings; checked, and the thresholds designed, "
+                         "when first used: the service does so at start)")
+    notifications: dict = Field(
+        default_factory=dict,
+        description="where alarm and prognosis events are sent ([notifications], docs/notifications.md); "
+                    "the notifications read their own section (service.notifications.routes), at start")
     iec61850_port: int | None = Field(None, ge=1, le=65535,
                                       description="IEC 61850 (MMS) server port; empty = off (102 is the "
                                       "standard port and needs privileges), see docs/iec61850.md")
@@ -292,14 +298,6 @@ class Settings(BaseSettings):
         check_daq_list(v)
         return v
 
-    @field_validator("alarms")
-    @classmethod
-    def _alarm_settings(cls, v):
-        from service.alarms.settings import DriftSettings
-
-        DriftSettings.from_mapping(v)  # refuse unknown keys and inconsistent thresholds now
-        return v
-
     @field_validator("database_url")
     @classmethod
     def _no_default_password(cls, v):
@@ -338,9 +336,10 @@ class Settings(BaseSettings):
 
     @property
     def drift_settings(self):
-        from service.alarms.settings import DriftSettings
-
-        return DriftSettings.from_mapping(self.alarms)
+        """The drift detector's settings (``[alarms]``), built and their CUSUM thresholds designed
+        on first use, once per distinct section (loading the settings designs nothing: a command
+        that needs no alarms never pays for it). Bad values raise ValueError in words."""
+        return drift_settings_for(self.alarms)
 
     @property
     def capture_dir(self) -> Path:
@@ -353,6 +352,21 @@ class Settings(BaseSettings):
     @property
     def key_file(self) -> Path:
         return self.data_dir / "admin.key"
+
+
+def drift_settings_for(section: dict):
+    """The drift detector's settings of an ``[alarms]`` section (a worker process given only the
+    section), designed once per distinct section in this process."""
+    return _drift_settings(json.dumps(section, sort_keys=True, default=str))
+
+
+@functools.lru_cache(maxsize=16)
+def _drift_settings(section_json: str):
+    from service.alarms.settings import DriftSettings
+
+    settings = DriftSettings.from_mapping(json.loads(section_json))
+    settings.h_warning, settings.h_alarm  # designed here, once, for every later reader
+    return settings
 
 
 class TomlSource(TomlConfigSettingsSource):

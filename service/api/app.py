@@ -74,8 +74,16 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
     from service.workers import make_executor
     from service.workers.breaker_diagnoses import BreakerDiagnosisRunner
     from service.workers.diagnoses import DiagnosisRunner
+    from service.workers.reports import ReportRunner
+
+    from service.notifications.routes import from_section
 
     from .daq import ServiceDaqs
+
+    # The sections their own packages read: refused here, at start, in words (loading the
+    # settings checks neither, so a command that needs neither starts at once).
+    notification_settings = from_section(settings.notifications)
+    settings.drift_settings  # noqa: B018  (the [alarms] section checked, its thresholds designed once)
 
     @asynccontextmanager
     async def lifespan(app: FastAPI):
@@ -86,11 +94,11 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
         srv = settings.server
         anyio.to_thread.current_default_thread_limiter().total_tokens = srv.threads
         app.state.priority_limiter = anyio.CapacityLimiter(4)
-        engine = make_engine(settings.sqlalchemy_url, pool_size=srv.pool_size)
+        engine = make_engine(settings.sqlalchemy_url, pool_size=srv.pool_size, sqlite_timeout_s=srv.sqlite_busy_s)
         check_schema(engine)
         Session = session_factory(engine)
         # /healthz, SCADA points and key checks: their own connections, never behind page loads
-        priority_engine = make_engine(settings.sqlalchemy_url, pool_size=4)
+        priority_engine = make_engine(settings.sqlalchemy_url, pool_size=4, sqlite_timeout_s=srv.sqlite_busy_s)
         app.state.PrioritySession = session_factory(priority_engine)
         key = bootstrap(settings, Session)
         if key and on_key:
@@ -101,6 +109,7 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
         app.state.engine, app.state.Session, app.state.monitor, app.state.daq = engine, Session, monitor, daq
         app.state.diagnoses = DiagnosisRunner(settings.sqlalchemy_url)
         app.state.breaker_diagnoses = BreakerDiagnosisRunner(settings)
+        app.state.reports = ReportRunner(settings)  # condition reports: drawn in a worker process
         if start_monitor:
             monitor.start()
             try:
@@ -117,7 +126,7 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
         from service.notifications.notifier import Notifier
 
         capture_notifications()  # alarm transitions write their events (also via crud in this process)
-        app.state.notifier = Notifier(settings.notifications, Session)  # [notifications] routes
+        app.state.notifier = Notifier(app.state.notification_settings, Session)  # [notifications] routes
         if start_monitor:
             app.state.notifier.start()
         app.state.iec61850 = None
@@ -148,6 +157,7 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
                 app.state.iec61850.stop()
             app.state.diagnoses.shutdown()
             app.state.breaker_diagnoses.shutdown()
+            app.state.reports.shutdown()
             if start_monitor:
                 daq.stop()
                 monitor.stop()
@@ -162,6 +172,7 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
                   description="Condition monitor for spring-operated HV circuit-breaker mechanisms. "
                               "Send an API key in X-API-Key. Times are UTC ISO-8601 with Z.")
     app.state.settings = settings
+    app.state.notification_settings = notification_settings
     app.state.key_cache = KeyCache()
     app.state.auth_throttle = AuthThrottle.from_settings(settings.server)
     app.state.upload_slots = None  # an asyncio.Semaphore made on first upload (it needs the loop)

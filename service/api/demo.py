@@ -3,7 +3,8 @@
 The history of the reference breaker: a healthy baseline, then a slow buffer oil leak (DO
 falling). Each operation is made by the virtual prototype with mild physical effects (viscous
 friction, sensor bow, ...) and run-to-run spread of the parameters, and queued in the emulator's
-capture buffer at a modest pace. The service reads it like a real DAQ: Modbus driver → trigger →
+capture buffer at a modest pace; the history is simulated in a process of its own, at a lower
+priority, so the emulator never takes the API's interpreter. The service reads it like a real DAQ: Modbus driver → trigger →
 durable COMTRADE → ingest → fit job. Nothing here touches the service; only the Modbus port
 connects the two.
 """
@@ -77,6 +78,71 @@ def history(breaker, script: DemoScript) -> Iterator[tuple[int, str, object]]:
             yield i, kind, cap
 
 
+def _produce(breaker, script: DemoScript, out, stop) -> None:
+    """The history, made in a process of its own (``DemoDaq``): the virtual prototype's
+    simulations are CPU work that must not share the API's interpreter. Each capture is put on
+    ``out``; None ends it."""
+    import queue
+    import signal
+
+    from service.workers.priority import lower_priority
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # a terminal's Ctrl-C is the parent's to handle
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+    lower_priority()  # the breaker's history waits for the service, never the other way round
+    try:
+        for item in history(breaker, script):
+            while not stop.is_set():
+                try:
+                    out.put(item[2], timeout=0.5)
+                    break
+                except queue.Full:
+                    continue
+            if stop.is_set():
+                return
+    finally:
+        out.put(None)
+
+
+class _HistoryProcess:
+    """``next()`` of the history from a spawned producer process, two captures ahead."""
+
+    def __init__(self, breaker, script: DemoScript):
+        import multiprocessing
+
+        ctx = multiprocessing.get_context("spawn")
+        self._queue, self._stop = ctx.Queue(maxsize=2), ctx.Event()
+        self._proc = ctx.Process(target=_produce, args=(breaker, script, self._queue, self._stop),
+                                 name="hvcb-demo-history", daemon=True)
+        import signal
+
+        old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})  # until the child ignores it
+        try:
+            self._proc.start()
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+    def next(self):
+        """The next capture, or None at the end of the history (or when the producer died)."""
+        import queue
+
+        while True:
+            try:
+                return self._queue.get(timeout=1.0)
+            except queue.Empty:
+                if not self._proc.is_alive():
+                    return None
+
+    def close(self) -> None:
+        self._stop.set()
+        self._proc.join(timeout=5)
+        if self._proc.is_alive():
+            self._proc.terminate()
+            self._proc.join(timeout=5)
+        self._queue.close()
+        self._queue.cancel_join_thread()
+
+
 class DemoDaq:
     """The Modbus TCP DAQ emulator of the demo, on its own thread and event loop.
 
@@ -135,14 +201,13 @@ class DemoDaq:
         await em.start()
         self.port = em.port
         self._ready.set()
+        items = _HistoryProcess(self.breaker, self.script)
         try:
             sample_index = 0
-            items = history(self.breaker, self.script)
             while not self._stop.is_set():
-                item = await asyncio.to_thread(next, items, None)
-                if item is None:
+                cap = await asyncio.to_thread(items.next)
+                if cap is None:
                     break
-                _, _, cap = item
                 em.add_capture(SampleBlock(sample_index, cap.travel, cap.vibration, cap.sample_rate))
                 self.queued += 1
                 sample_index += int(cap.sample_rate * self.script.interval_s)
@@ -158,4 +223,5 @@ class DemoDaq:
             self.done.set()
             await self._stop.wait()
         finally:
+            await asyncio.to_thread(items.close)
             await em.stop()

@@ -98,9 +98,13 @@ async def authorise_key(request: Request, key: str | None, role: str, *, also: t
 
 
 def _lookup(request: Request, key: str) -> Principal | None:
-    try:
+    from service.storage.db import retry_locked
+
+    def find():
         with request.app.state.PrioritySession() as session:
-            row = crud.find_api_key(session, key=key)
+            return crud.find_api_key(session, key=key)
+    try:
+        row = retry_locked(find)
     except (OperationalError, DBAPIError):
         raise HTTPException(503, "database unavailable; try again shortly") from None
     if row is None:

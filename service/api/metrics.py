@@ -46,9 +46,8 @@ class _DbCollector:
                 out_of_service = dict(session.execute(select(BreakerRow.name, BreakerRow.out_of_service_since)).all())
                 from service.notifications.metrics import notification_metrics
 
-                settings = getattr(self.app.state, "settings", None)
-                notify = notification_metrics(session, [r.name for r in settings.notifications.routes]
-                                              if settings is not None else [])
+                ns = getattr(self.app.state, "notification_settings", None)
+                notify = notification_metrics(session, [r.name for r in ns.routes] if ns is not None else [])
         except (OperationalError, DBAPIError):
             up.add_metric([], 0)
             yield up

@@ -21,13 +21,14 @@ from service.storage.fit_curve import fit_curve
 from service.storage.models import BreakerRow, utcnow
 
 from . import schemas as s
+from .refs import BreakerRef, IsoOnly, breaker_by_ref
 from .deps import AdminDep, MonitorDep, OperatorDep, ReaderDep, SessionDep, SettingsDep, UploaderDep
 
 router = APIRouter(prefix="/api/v1")
 
 # Row ids are 32-bit on PostgreSQL: a larger id is a 422, not a database error.
 MAX_ID = 2_147_483_647
-BreakerId = Annotated[int, PathParam(ge=1, le=MAX_ID, description="breaker id")]
+BreakerId = BreakerRef  # the id, the name or the tag (service/api/refs.py)
 OperationId = Annotated[int, PathParam(ge=1, le=MAX_ID, description="operation id")]
 AlarmId = Annotated[int, PathParam(ge=1, le=MAX_ID, description="alarm id")]
 
@@ -35,11 +36,8 @@ NOT_FOUND = {404: {"model": s.Message}}
 AUTH = {401: {"model": s.Message}, 403: {"model": s.Message}}
 
 
-def _breaker_or_404(session, breaker_id: int):
-    row = crud.get_breaker(session, breaker_id=breaker_id)
-    if row is None:
-        raise HTTPException(404, f"no breaker {breaker_id}")
-    return row
+def _breaker_or_404(session, ref: str):
+    return breaker_by_ref(session, ref)
 
 
 def _utc(t: datetime | None) -> datetime | None:
@@ -93,7 +91,7 @@ def reset_baseline(breaker_id: BreakerId, body: s.BaselineReset, session: Sessio
                    who: AdminDep):
     from service.jobs.fit import reset_baseline as reset
 
-    _breaker_or_404(session, breaker_id)
+    breaker_id = _breaker_or_404(session, breaker_id).id
     cleared = reset(session, breaker_id=breaker_id, by=who.name, settings=settings.drift_settings)
     session.commit()
     return s.Message(detail=f"baseline reset ({body.reason}); the next {settings.drift_settings.baseline_n} "
@@ -122,6 +120,7 @@ def breaker_health(breaker_id: BreakerId, session: SessionDep, settings: Setting
     from service.jobs.fit import drift_status
 
     row = _breaker_or_404(session, breaker_id)
+    breaker_id = row.id
     opening = _latest(row, crud.latest_fit(session, breaker_id=breaker_id, kind="open"), "open")
     closing = _latest(row, crud.latest_fit(session, breaker_id=breaker_id, kind="close"), "close")
     alarms = crud.list_alarms(session, state="active", breaker_id=breaker_id)
@@ -146,11 +145,11 @@ def breaker_health(breaker_id: BreakerId, session: SessionDep, settings: Setting
             tags=["breakers"])
 def parameter_trend(breaker_id: BreakerId, session: SessionDep, _: ReaderDep,
                     name: Annotated[s.ParameterName, Query(description="parameter, e.g. DO")],
-                    since: Annotated[datetime | None, Query(description="ISO-8601; UTC when no zone")] = None,
+                    since: Annotated[datetime | None, IsoOnly, Query(description="ISO-8601; UTC when no zone")] = None,
                     limit: Annotated[int, Query(ge=1, le=20000)] = 5000,
                     include_clock_suspect: Annotated[bool, Query(
                         description="also values of clock-suspect operations (left out by default)")] = False):
-    _breaker_or_404(session, breaker_id)
+    breaker_id = _breaker_or_404(session, breaker_id).id
     rows = crud.parameter_trend(session, breaker_id=breaker_id, name=name, since=_utc(since), limit=limit,
                                 clock_suspect=None if include_clock_suspect else False)
     points = [s.TrendPoint(time=r.occurred_at, value=r.value, operation_id=r.operation_id, identifiable=r.identifiable,
@@ -165,7 +164,7 @@ def list_operations(breaker_id: BreakerId, session: SessionDep, _: ReaderDep,
                     limit: Annotated[int, Query(ge=1, le=1000)] = 50,
                     clock_suspect: Annotated[bool | None, Query(
                         description="true: only clock-suspect operations; false: none of them; omitted: all")] = None):
-    _breaker_or_404(session, breaker_id)
+    breaker_id = _breaker_or_404(session, breaker_id).id
     return crud.list_operations(session, breaker_id=breaker_id, limit=limit, clock_suspect=clock_suspect)
 
 
@@ -269,9 +268,9 @@ def _duplicate(session, breaker_id: int, key: str) -> s.UploadAccepted | None:
                                         for o in ops])
 
 
-def _upload_context(session, breaker_id: int, idempotency_key: str | None):
-    row = _breaker_or_404(session, breaker_id)
-    dup = _duplicate(session, breaker_id, idempotency_key, ) if idempotency_key is not None else None
+def _upload_context(session, ref: str, idempotency_key: str | None):
+    row = _breaker_or_404(session, ref)
+    dup = _duplicate(session, row.id, idempotency_key, ) if idempotency_key is not None else None
     return row, dup
 
 
@@ -315,7 +314,7 @@ async def upload_capture(breaker_id: BreakerId, request: Request, response: Resp
     source = "agent" if who.role == "agent" else "upload"
     if temperature_c is not None:  # given with the upload: it beats the capture's channel
         upload.capture.meta["temperature_c"], upload.capture.meta["temperature_source"] = temperature_c, source
-    result = await run_in_threadpool(ingest_upload, monitor, settings, upload, breaker_id=breaker_id, source=source,
+    result = await run_in_threadpool(ingest_upload, monitor, settings, upload, breaker_id=row.id, source=source,
                                      capture_key=idempotency_key)
     done = [result, *result.more]
     return s.UploadAccepted(operation_id=result.operation_id, capture_key=result.capture_key, operation=upload.kind,

@@ -8,7 +8,6 @@ from typing import Annotated
 
 from fastapi import APIRouter, HTTPException, Path as PathParam
 from pydantic import BaseModel, Field
-from sqlalchemy import or_, select
 
 from service.alarms.lifecycle import MAX_SHELVE, LifecycleError
 from service.jobs import alarm_actions as actions
@@ -17,13 +16,13 @@ from service.storage.models import BreakerRow
 
 from . import schemas as s
 from .deps import AdminDep, OperatorDep, ReaderDep, SessionDep, SettingsDep
+from .refs import BreakerRef, breaker_by_ref
 
 router = APIRouter(prefix="/api/v1", tags=["alarms"])
 
 MAX_ID = 2_147_483_647
 AlarmId = Annotated[int, PathParam(ge=1, le=MAX_ID, description="alarm id")]
-BreakerId = Annotated[int, PathParam(ge=1, le=MAX_ID, description="breaker id")]
-BreakerRef = Annotated[str, PathParam(min_length=1, max_length=120, description="breaker id, name or tag")]
+BreakerId = BreakerRef  # the id, the name or the tag (service/api/refs.py)
 ERRORS = {401: {"model": s.Message}, 403: {"model": s.Message}, 404: {"model": s.Message},
           409: {"model": s.Message}}
 
@@ -97,21 +96,12 @@ def _alarm(session, alarm_id: int):
     return a
 
 
-def _breaker(session, breaker_id: int) -> BreakerRow:
-    b = session.get(BreakerRow, breaker_id)
-    if b is None:
-        raise HTTPException(404, f"no breaker {breaker_id}")
-    return b
+def _breaker(session, ref: str) -> BreakerRow:
+    return breaker_by_ref(session, ref)
 
 
 def _breaker_ref(session, ref: str) -> BreakerRow:
-    q = select(BreakerRow).where(or_(BreakerRow.name == ref, BreakerRow.tag == ref))
-    b = session.scalar(q)
-    if b is None and ref.isdigit() and int(ref) <= MAX_ID:
-        b = session.get(BreakerRow, int(ref))
-    if b is None:
-        raise HTTPException(404, f"no breaker named {ref!r}")
-    return b
+    return breaker_by_ref(session, ref)
 
 
 def _lifecycle(call):
@@ -156,7 +146,7 @@ def alarm_audit(alarm_id: AlarmId, session: SessionDep, _: ReaderDep):
 @router.get("/breakers/{breaker_id}/alarms/history", response_model=list[HistoryEntry], responses=ERRORS)
 def alarm_history(breaker_id: BreakerId, session: SessionDep, _: ReaderDep):
     """Every alarm of the breaker in the order raised, first-out marked, with its audit trail."""
-    _breaker(session, breaker_id)
+    breaker_id = _breaker(session, breaker_id).id
     return [HistoryEntry(order=h["order"], first_out=h["first_out"], shelved=h["shelved"],
                          alarm=AlarmLifecycle.model_validate(h["alarm"]),
                          actions=[ActionPublic.model_validate(a) for a in h["actions"]])
@@ -168,7 +158,7 @@ def alarm_evidence(breaker_id: BreakerId, parameter: Annotated[str, PathParam(ma
                    session: SessionDep, settings: SettingsDep, _: ReaderDep) -> dict:
     """The evidence plot's data: each good fit's value with the baseline's expected value and
     +-2 sigma band at its temperature, the temperature, the CUSUM and its thresholds."""
-    _breaker(session, breaker_id)
+    breaker_id = _breaker(session, breaker_id).id
     ds = settings.drift_settings
     if parameter not in ds.watched:
         raise HTTPException(404, f"{parameter} is not watched for drift (watched: {', '.join(ds.watched)})")

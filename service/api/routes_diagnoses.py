@@ -18,6 +18,7 @@ from service.jobs.breaker_diagnosis import (MAX_LAST, MIN_LAST, NothingToDiagnos
 from service.storage import crud, crud_diagnoses
 
 from .deps import ReaderDep, SessionDep
+from .refs import NumberOnly
 from .schemas import Message, UtcTime
 
 router = APIRouter(prefix="/api/v1", tags=["diagnoses"])
@@ -31,7 +32,7 @@ NOT_FOUND = {404: {"model": Message}}
 
 class BreakerDiagnosisCreate(BaseModel):
     operation: Literal["open", "close"] = Field(description="which stored operations: openings or closings")
-    last: int = Field(10, description=f"how many of the newest usable ones, {MIN_LAST} to {MAX_LAST}",
+    last: Annotated[int, NumberOnly] = Field(10, description=f"how many of the newest usable ones, {MIN_LAST} to {MAX_LAST}",
                       json_schema_extra={"minimum": MIN_LAST, "maximum": MAX_LAST})
 
 

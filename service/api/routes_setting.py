@@ -20,6 +20,7 @@ from service.storage.spring_references import (
 )
 
 from . import schemas as s
+from .refs import NumberOnly
 from .deps import OperatorDep, ReaderDep, SessionDep
 from .routes_alarms import _breaker_ref
 
@@ -50,8 +51,10 @@ class Commissioning(BaseModel):
 
 
 class CommissionRequest(BaseModel):
-    operation_id: int = Field(ge=1, le=2**31 - 1, description="either half of the close–open pair")
-    known_steps: float = Field(ge=-50, le=50, description="its nut setting [steps from the design seat]")
+    # a JSON number only (false is not 0 steps, "3" is not 3; the schema says number)
+    operation_id: Annotated[int, NumberOnly] = Field(ge=1, le=2**31 - 1, description="either half of the close–open pair")
+    known_steps: Annotated[float, NumberOnly] = Field(ge=-50, le=50, allow_inf_nan=False,
+                                                      description="its nut setting [steps from the design seat]")
 
 
 class SettingPublic(BaseModel):

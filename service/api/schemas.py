@@ -90,6 +90,10 @@ class FitPublic(ORM):
     dc_source: str | None = None
     warnings: list[str] | None = None
     characteristics: dict | None = None
+    interval_noise: dict | None = Field(None, description="which noise the 95 % intervals and the residual band "
+                                        "stand for: basis \"idle samples\" or \"residual in motion\" (HAC "
+                                        "sandwich, docs/estimation.md), band_rad its 1σ [rad], each parameter's "
+                                        "widening over the idle-noise interval")
     queued_at: UtcTime
     started_at: UtcTime | None = None
     finished_at: UtcTime | None = None

@@ -9,8 +9,6 @@ import glob
 import json
 from pathlib import Path
 
-import numpy as np
-
 CAPTURE_SUFFIXES = (".cfg", ".cff", ".csv")
 
 
@@ -83,6 +81,8 @@ def run_diagnose(args) -> int:
 
 
 def _plot(result, cap, breaker, args):
+    import numpy as np
+
     from .data import STATE, model_curve
     from .report import plot_residuals
     from .windows import prepare
@@ -102,6 +102,8 @@ def _plot(result, cap, breaker, args):
 
 
 def _jsonable(v):
+    import numpy as np
+
     if isinstance(v, (np.floating, np.integer)):
         return v.item()
     if isinstance(v, np.bool_):

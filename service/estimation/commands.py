@@ -5,16 +5,11 @@ from __future__ import annotations
 import json
 import sys
 
-from drivers.capture import CaptureError
-from ..acquisition.capture_file import breaker_reading, read_capture
-from ..breaker_file import BreakerFileError, load_breaker
+from service.arguments import rate_hz  # (--rate)
+
 from ..errors import UserError
-from .fit import fit_capture
-from .window import FitError
 
 DEFAULT_BREAKER = "config/breakers/reference-252kV.toml"
-
-from service.arguments import rate_hz  # noqa: E402  (--rate)
 
 
 def register(subparsers) -> None:
@@ -35,6 +30,14 @@ def register(subparsers) -> None:
 
 
 def run_fit(args) -> int:
+    # Imported here, not at the top: `hvcb fit --help` must not load CMA-ES, scipy and numba.
+    from drivers.capture import CaptureError
+
+    from ..acquisition.capture_file import breaker_reading, read_capture
+    from ..breaker_file import BreakerFileError, load_breaker
+    from .fit import fit_capture
+    from .window import FitError
+
     try:
         breaker = load_breaker(args.breaker)
         capture = read_capture(args.capture, **breaker_reading(breaker), rate=args.rate)
@@ -65,6 +68,12 @@ def format_fit(result) -> str:
         lo, hi = result.ci95[name]
         pct = 100 * (hi - lo) / 2 / abs(value) if value else float("nan")
         lines.append(f"{name:<6}{value:>14.4f}{f'[{lo:.4f}, {hi:.4f}]':>30}{pct:>8.3f}")
+    n = result.interval_noise or {}
+    if n.get("basis") == "residual in motion":
+        widest = max(n["widening"].items(), key=lambda kv: kv[1])
+        lines.append(f"95% CI from the residual in motion (its AR({n['ar_order']}) correlation, "
+                     f"{n['band_rad'] * 1e3:.3f} mrad rms): up to {widest[1]:.1f}x the idle-noise "
+                     f"interval ({widest[0]})")
     if result.operation == "close":
         lines.append(f"DC = {result.dc_used:.2f} s^-2 from the {result.dc_source}")
     for name, est in result.structure.items():

@@ -23,7 +23,7 @@ from .curves import ClosingCurves, OpeningCurves, weighted_rmse
 from .parameter_space import ParameterSpace
 from .result import FitResult
 from .polish import batched_jacobian, polish
-from .uncertainty import Z95, covariance
+from .uncertainty import Z95, correlated_covariance
 from .warm_start import Prior, sigma0, warm_space
 from .window import FitError, FitWindow, block_samples, decimate, prepare_window
 
@@ -171,6 +171,9 @@ def fit_capture(capture: Capture, breaker: Breaker, operation: str, *, dc: float
     if operation == "close":
         result.dc_used, result.dc_source = dc, dc_source
     result.fitness = 1.0 / result.rmse_rad if result.rmse_rad > 0 else float("inf")
+    if result.interval_noise is not None and result.interval_noise["basis"] == "residual in motion":
+        # the residual band: the residual's own rms at the samples where it is wider than the idle noise
+        result.interval_noise["band_rad"] = float(max(window.noise_rad, result.rmse_rad))
     result.characteristics = travel_characteristics(
         capture.t, capture.travel, operation, stroke=breaker.stroke, t_start=window.t_start,
         alpha0=result.structure.get("alpha0", {}).get("value", breaker.alpha0))
@@ -394,8 +397,9 @@ def _finish(operation, names, x, residual_rows, scale, lower, upper, window, set
         if pol.success and sse(pol.x) <= sse(x):
             x = pol.x
     # The covariance needs the Jacobian at the reported estimate itself.
-    jac = batched_jacobian(residual_rows, x, scale, lower, upper)[1]
-    unc = covariance(jac, window.noise_rad, scale, n_model=len(names) - 1)
+    # ...and the residual it leaves, with its correlation (AR(p) residual sandwich, uncertainty.py).
+    resid, jac = batched_jacobian(residual_rows, x, scale, lower, upper)
+    unc = correlated_covariance(jac, resid, window.noise_rad, scale, n_model=len(names) - 1)
     if x[-1] <= lower[-1] + 1e-9 or x[-1] >= upper[-1] - 1e-9:
         warnings.append(f"the onset delay sits on its bound ({x[-1] * 1e3:.2f} ms): the start of "
                         "motion does not match the model, and the confidence intervals understate "
@@ -410,7 +414,17 @@ def _finish(operation, names, x, residual_rows, scale, lower, upper, window, set
         fitness=float("nan"), window_s=(window.t_start, window.t_end), onset_delay_s=float(x[-1]),
         noise_rad=window.noise_rad, evaluations=int(evaluations), runtime_s=0.0,
         identifiable=unc.identifiable, condition_number=unc.condition_number, ranges=ranges,
-        readaptations=readaptations, stages=stages, warnings=warnings, start=start)
+        readaptations=readaptations, stages=stages, warnings=warnings, start=start,
+        interval_noise=_interval_noise(unc, model_names, window.noise_rad))
+
+
+def _interval_noise(unc, model_names, idle_rad: float) -> dict | None:
+    """Which noise the intervals and the residual band stand for (FitResult.interval_noise)."""
+    if unc.noise is None:
+        return {"basis": "idle samples", "band_rad": float(idle_rad), "idle_noise_rad": float(idle_rad)}
+    n = dict(unc.noise)
+    widen = dict(zip(model_names, n.pop("widening")))
+    return {**n, "band_rad": float(idle_rad), "widening": widen}  # band_rad: fit_capture, at the samples
 
 
 def _floor_target(grid, window: FitWindow, blocks: float) -> float:

@@ -61,6 +61,11 @@ class FitResult:
         What the window starts at: ``latch shock``, ``coil C4/...``, ``first sample``.
     picked : dict or None
         For a record of several operations: which one was fitted (kind, index, of how many).
+    interval_noise : dict or None
+        Which noise the intervals (and the operation page's residual band) stand for: ``basis``
+        "idle samples" or "residual in motion", ``band_rad`` the band's 1σ [rad], the
+        residual's AR order and each parameter's widening over the idle-noise interval
+        (service.estimation.uncertainty).
     """
 
     operation: str
@@ -90,6 +95,7 @@ class FitResult:
     characteristics_record: dict = field(default_factory=dict)
     command_source: str = "latch shock"
     picked: dict | None = None
+    interval_noise: dict | None = None
 
     def to_dict(self) -> dict:
         out = {
@@ -122,6 +128,8 @@ class FitResult:
         out["command_source"] = self.command_source
         if self.picked is not None:
             out["picked"] = self.picked
+        if self.interval_noise is not None:
+            out["interval_noise"] = self.interval_noise
         if self.operation == "close":
             out["dc_used"] = float(self.dc_used)
             out["dc_source"] = self.dc_source

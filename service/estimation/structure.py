@@ -17,7 +17,7 @@ from ..mechanics.breaker import Breaker
 from ..mechanics.characteristics import travel_characteristics
 from .curves import OpeningCurves
 from .polish import batched_jacobian, polish
-from .uncertainty import Z95, covariance
+from .uncertainty import Z95, correlated_covariance
 from .window import FitWindow, block_samples, decimate
 
 # α0 profile grid, as fractions of the stroke: buffers engage in the last half of the opening
@@ -105,8 +105,8 @@ def fit_structure(result, window: FitWindow, breaker: Breaker, settings) -> Brea
     if float(np.sum(joint(pol.x[None, :]) ** 2)) <= float(np.sum(joint(x[idx][None, :]) ** 2)):
         x = x.copy()
         x[idx] = pol.x
-    jac = batched_jacobian(joint, x[idx], scale[idx], lower[idx], upper[idx])[1]
-    unc = covariance(jac, window.noise_rad, scale[idx], n_model=len(idx) - 1)
+    resid, jac = batched_jacobian(joint, x[idx], scale[idx], lower[idx], upper[idx])
+    unc = correlated_covariance(jac, resid, window.noise_rad, scale[idx], n_model=len(idx) - 1)
     names = list(MODEL) + free + ["tau"]
     for i, n in enumerate(MODEL):
         result.parameters[n] = float(x[i])
@@ -116,6 +116,10 @@ def fit_structure(result, window: FitWindow, breaker: Breaker, settings) -> Brea
     keep_c = [0, 1, 2, 3, len(idx) - 1]
     result.correlation = unc.correlation[np.ix_(keep_c, keep_c)].tolist()
     result.identifiable = result.identifiable and unc.identifiable
+    if unc.noise is not None:
+        noise = dict(unc.noise)
+        widen = dict(zip(list(MODEL) + free, noise.pop("widening")))
+        result.interval_noise = {**noise, "band_rad": float(window.noise_rad), "widening": widen}
     units = {"alpha0": "rad", "CO": "s^-1"}
     for j, n in enumerate(free, start=4):
         v, se = float(x[idx[j]]), float(unc.stderr[j])

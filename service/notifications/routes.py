@@ -12,7 +12,7 @@ import os
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import BaseModel, Field, model_validator
+from pydantic import BaseModel, Field, ValidationError, model_validator
 
 from service.notifications.events import KINDS, SEVERITIES
 
@@ -113,6 +113,22 @@ class NotificationSettings(BaseModel):
         if self.retry_min_s > self.retry_max_s:
             raise ValueError("[notifications] retry_min_s must not exceed retry_max_s")
         return self
+
+
+def from_section(section) -> NotificationSettings:
+    """The ``[notifications]`` section of the settings (a mapping, as read from the TOML file or
+    given as a keyword) as a NotificationSettings: the notifications read their own section, so
+    the settings layer needs nothing from here. Bad values raise ValueError in words."""
+    if isinstance(section, NotificationSettings):
+        return section
+    if not isinstance(section, dict):
+        raise ValueError(f"[notifications] must be a table of settings, got {type(section).__name__}")
+    try:
+        return NotificationSettings.model_validate(section)
+    except ValidationError as exc:
+        raise ValueError("bad settings: " + "; ".join(
+            f"notifications.{'.'.join(map(str, e['loc']))}: {e['msg'].removeprefix('Value error, ')}"
+            for e in exc.errors())) from None
 
 
 def _from_env(name: str, where: str) -> str:

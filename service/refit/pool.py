@@ -14,7 +14,7 @@ BATCH_TASK = "hvcb.refit_batch"
 
 def _warm() -> None:
     try:
-        import service.estimation  # noqa: F401  (compile before the first batch)
+        import service.estimation.fit  # noqa: F401  (compile before the first batch)
     except Exception:
         pass
 

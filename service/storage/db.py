@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import time
 from functools import lru_cache
 from pathlib import Path
+from typing import Callable, TypeVar
 
 from sqlalchemy import create_engine, event
 from sqlalchemy.engine import Engine
@@ -16,8 +18,42 @@ class DatabaseUnavailable(RuntimeError):
     """The database cannot be reached or is locked; the caller spools and retries."""
 
 
-def make_engine(url: str, *, sqlite_timeout_s: float = 5.0, pool_size: int = 10, pool_timeout_s: float = 10.0) -> Engine:
-    """An engine for ``url``. SQLite gets WAL, foreign keys and a bounded lock wait.
+T = TypeVar("T")
+# SQLite's answers when another connection holds the write lock longer than the busy timeout.
+_LOCKED = ("database is locked", "database table is locked", "database is busy")
+LOCK_RETRIES = 3          # attempts after the first...
+LOCK_RETRY_FIRST_S = 0.25  # ...waiting 0.25, 0.5, 1 s between them (on top of each busy timeout)
+
+
+def is_locked(exc: BaseException) -> bool:
+    """Did SQLite refuse because another connection held its write lock (not a real fault)?"""
+    return any(m in str(exc).lower() for m in _LOCKED)
+
+
+def retry_locked(work: Callable[[], T], *, retries: int = LOCK_RETRIES, first_wait_s: float = LOCK_RETRY_FIRST_S,
+                 sleep: Callable[[float], None] = time.sleep) -> T:
+    """``work()`` (a whole unit of work: it opens its own session and transaction) run again when
+    SQLite answered "database is locked", a bounded number of times with a doubling wait. A writer
+    holding the lock past the busy timeout (``make_engine``'s ``sqlite_timeout_s``) then costs the
+    caller a longer wait, never a 503; any other error, and the last locked one, propagate."""
+    from sqlalchemy.exc import OperationalError
+
+    wait = first_wait_s
+    for attempt in range(retries + 1):
+        try:
+            return work()
+        except OperationalError as exc:
+            if attempt == retries or not is_locked(exc):
+                raise
+        sleep(wait)
+        wait *= 2
+    raise AssertionError("unreachable")
+
+
+def make_engine(url: str, *, sqlite_timeout_s: float = 10.0, pool_size: int = 10, pool_timeout_s: float = 10.0) -> Engine:
+    """An engine for ``url``. SQLite gets WAL (readers never wait for a writer), foreign keys and
+    a bounded lock wait (``sqlite_timeout_s``, SQLite's busy timeout [s]: a writer waits this long
+    for another writer's lock before "database is locked"; ``retry_locked`` retries the unit of work).
 
     ``pool_size``: connections kept (the service passes its thread count plus its background
     threads, ``[server]``); no overflow, so a caller waits at most ``pool_timeout_s`` and then
@@ -34,6 +70,7 @@ def make_engine(url: str, *, sqlite_timeout_s: float = 5.0, pool_size: int = 10,
         def _pragmas(dbapi_conn, _record):
             cur = dbapi_conn.cursor()
             cur.execute("PRAGMA foreign_keys=ON")
+            cur.execute(f"PRAGMA busy_timeout={int(sqlite_timeout_s * 1000)}")
             cur.execute("PRAGMA journal_mode=WAL")
             cur.execute("PRAGMA synchronous=NORMAL")
             cur.close()

@@ -135,6 +135,12 @@ class FitRow(Base):
     refit_run_id: Mapped[int | None] = mapped_column(ForeignKey("refit_runs.id", ondelete="SET NULL"))
     operation: Mapped[OperationRow] = relationship(back_populates="fit")
 
+    @property
+    def interval_noise(self) -> dict | None:
+        """Which noise the intervals and the residual band stand for (FitResult.interval_noise);
+        None for a fit stored before it was recorded (its band is the idle samples' σ)."""
+        return (self.result or {}).get("interval_noise")
+
 
 class DiagnosisRow(Base):
     """The sim-to-real gap diagnosis of one operation, computed on demand (one per operation)."""

@@ -137,7 +137,14 @@ def set_cookie(response, request: Request, name: str, value: str, max_age: int, 
 
 
 def sign_in(request: Request, key: str) -> tuple[str, WebUser]:
-    """Check the key and open a session. Returns (cookie value, user); raises WebAuthError."""
+    """Check the key and open a session. Returns (cookie value, user); raises WebAuthError. A
+    writer holding SQLite's lock makes it wait and try again (bounded), not answer 503."""
+    from service.storage.db import retry_locked
+
+    return retry_locked(lambda: _sign_in(request, key))
+
+
+def _sign_in(request: Request, key: str) -> tuple[str, WebUser]:
     with request.app.state.Session() as session, session.begin():
         row = crud.find_api_key(session, key=key.strip())
         if row is None:
@@ -154,8 +161,12 @@ def sign_in(request: Request, key: str) -> tuple[str, WebUser]:
 
 
 def sign_out(request: Request, user: WebUser) -> None:
-    with request.app.state.Session() as session, session.begin():
-        crud_web.end_web_session(session, token_hash=token_hash(user.token))
+    from service.storage.db import retry_locked
+
+    def end():
+        with request.app.state.Session() as session, session.begin():
+            crud_web.end_web_session(session, token_hash=token_hash(user.token))
+    retry_locked(end)
 
 
 def end_presented_session(request: Request) -> bool:
@@ -168,8 +179,12 @@ def end_presented_session(request: Request) -> bool:
         token = signer(request).unsign(cookie)
     except WebAuthError:
         return False
-    with request.app.state.Session() as session, session.begin():
-        return crud_web.end_web_session(session, token_hash=token_hash(token))
+    from service.storage.db import retry_locked
+
+    def end():
+        with request.app.state.Session() as session, session.begin():
+            return crud_web.end_web_session(session, token_hash=token_hash(token))
+    return retry_locked(end)
 
 
 def current_user(request: Request) -> WebUser:

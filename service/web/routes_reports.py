@@ -61,18 +61,20 @@ def _download(body, name: str, media: str):
 
 @router.get("/breakers/{breaker_id}/report.pdf")
 async def report_pdf(request: Request, breaker_id: Id, user: Reader, start: From = "", end: To = ""):
-    from service.reports.content import gather
-    from service.reports.pdf import render
+    """Drawn by a worker process (service/workers/reports.py), awaited without holding a thread."""
+    import asyncio
+
+    from service.workers.reports import ReportFailed
 
     window = _window(start, end)
-
-    def build():
-        with db_session(request) as session:
-            b = crud.get_breaker(session, breaker_id=breaker_id) or not_found(f"breaker {breaker_id}")
-            content = gather(session, breaker=b, settings=request.app.state.settings.drift_settings, window=window)
-        return render(content), b.name
-
-    body, name = await run_in_threadpool(build)
+    bid, bname = await run_in_threadpool(_breaker, request, breaker_id)
+    job = request.app.state.reports.submit(breaker_id=bid, breaker_name=bname, start=window.start, end=window.end)
+    try:
+        body, name = await asyncio.shield(asyncio.wrap_future(job.future))
+    except ReportFailed as exc:
+        raise HTTPException(404, str(exc)) from None
+    except Exception:
+        raise HTTPException(503, job.error()) from None
     return _download(body, file_name(name, "condition-report", "pdf"), "application/pdf")
 
 

@@ -15,6 +15,8 @@ from concurrent.futures import Future, ThreadPoolExecutor
 
 from service.processes import process_pool
 
+from .priority import lower_priority
+
 TASK_NAME = "hvcb.breaker_diagnosis"
 
 
@@ -46,7 +48,7 @@ class BreakerDiagnosisRunner:
                 if self.kind == "inline":
                     self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="ThreadPoolExecutor-diagnosis")
                 else:  # spawn: the API process runs threads, which fork would copy mid-lock
-                    self._pool = process_pool(1)
+                    self._pool = process_pool(1, initializer=lower_priority)
             self._futures = {k: f for k, f in self._futures.items() if not f.done()}
             self._futures[diagnosis_id] = self._pool.submit(run_breaker_diagnosis_job, int(diagnosis_id),
                                                             self.settings.sqlalchemy_url)

@@ -24,7 +24,7 @@ if not settings.broker_url:
 app = make_celery_from_settings(settings)
 
 try:  # import the estimator once in the parent, so forked pool processes start warm
-    import service.estimation  # noqa: F401
+    import service.estimation.fit  # noqa: F401
 except Exception:  # the job reports a missing estimator as the fit's failure reason
     pass
 

@@ -7,6 +7,8 @@ from concurrent.futures import Future, ProcessPoolExecutor
 
 from service.processes import process_pool
 
+from .priority import lower_priority
+
 
 class DiagnosisRunner:
     """Submits ``run_diagnosis_job`` for an operation once per process lifetime of the request.
@@ -30,7 +32,7 @@ class DiagnosisRunner:
                 return
             if self._pool is None:
                 # spawn: the API process runs threads, which fork would copy mid-lock.
-                self._pool = process_pool(1)
+                self._pool = process_pool(1, initializer=lower_priority)
             self._futures[operation_id] = self._pool.submit(run_diagnosis_job, operation_id, self.database_url)
 
     def shutdown(self) -> None:

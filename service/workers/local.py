@@ -16,7 +16,7 @@ log = logging.getLogger("hvcb.workers")
 def _warm() -> None:
     """Import the estimator in each worker at start, so the first fit is not slower."""
     try:
-        import service.estimation  # noqa: F401
+        import service.estimation.fit  # noqa: F401
     except Exception:  # reported by the job itself
         pass
 

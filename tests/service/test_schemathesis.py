@@ -39,7 +39,7 @@ CONFIG = """
 expected-statuses = ["2xx", "3xx", "401", "403", "404", "409", "410", "429"]
 
 [[operations]]
-include-operation-id = ["create_breaker", "upload_capture", "request_breaker_diagnosis", "breaker_report",
+include-operation-id = ["create_breaker", "upload_capture", "request_breaker_diagnosis", "breaker_report", "request_report",
                         "operations_csv", "alarms_csv"]
 checks.positive_data_acceptance.expected-statuses = ["2xx", "401", "403", "404", "409", "410", "422", "429"]
 """
