@@ -8,10 +8,10 @@ PY     := $(VENV)/bin/python
 PIP    := $(PY) -m pip install -q --disable-pip-version-check
 CORE   := $(VENV)/.installed-core
 FULL   := $(VENV)/.installed-test
-TEST_EXTRAS ?= dev,studies,iec61850,plots,docs,notify
+TEST_EXTRAS ?= dev,studies,iec61850,docs,notify
 RUN_ARGS ?=
 
-.PHONY: run test setup bench docs docs-serve screenshots clean
+.PHONY: run test check setup bench docs docs-serve screenshots clean
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
@@ -34,6 +34,12 @@ run: $(CORE)
 
 test: $(FULL)
 	$(PY) -m pytest -q $(PYTEST_ARGS)
+
+# The inner loop: the core lane alone (no PostgreSQL, Redis, browser or shared-data lane; no
+# long study or 10,000-operation checks). `make test` runs them all.
+check: $(FULL)
+	HVCB_TEST_POSTGRES_URL= HVCB_TEST_REDIS_URL= HVCB_CHROMIUM=/nonexistent HVCB_SHARED_DIR=/nonexistent \
+	  $(PY) -m pytest -q -m "not slow and not history10k" $(PYTEST_ARGS)
 
 # The README's and docs' screenshots, taken by the browser tests from the demo's running chain.
 screenshots: $(FULL)

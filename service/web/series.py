@@ -175,6 +175,10 @@ def operation_curves(capture, fit, breaker, *, vibration_buckets: int = 2000) ->
         out["fitted"] = [None if not np.isfinite(v) else round(float(v), 6) for v in fitted]
         out["residual"] = [None if not np.isfinite(v) else round(float(v), 7) for v in resid]
         out["window"] = [w0, w1]
-        out["noise"] = fit.noise_rad
+        band = (getattr(fit, "interval_noise", None) or {})
+        # the band shows the noise the 95 % intervals stand for: the idle samples', or the residual's
+        # own in motion when it is wider (service/estimation/uncertainty.py)
+        out["noise"] = band.get("band_rad") or fit.noise_rad
+        out["noise_basis"] = band.get("basis") or "idle samples"
         out["phases"] = phase_spans(fit.kind, ft, fv, (w0, w1), fit.onset_delay_s, breaker)
     return out

@@ -281,7 +281,7 @@
         series: [{ label: "t [ms]", value: function (u, v) { return v == null ? "—" : v.toFixed(3) + " ms"; } },
           { label: "residual", stroke: "rgba(80,92,106,0.55)", width: 1, points: { show: false },
             value: function (u, v) { return fmt(v, 3) + " mrad"; } },
-          { label: "±2σ noise band", stroke: "#b3261e", width: 2, dash: [8, 4], points: { show: false },
+          { label: "±2σ band: " + (j.noise_basis === "residual in motion" ? "the residual's own noise in motion" : "the noise before the motion"), stroke: "#b3261e", width: 2, dash: [8, 4], points: { show: false },
             value: function (u, v) { return v == null ? "—" : "±" + fmt(v, 3) + " mrad"; } },
           { label: "−2σ", stroke: "#b3261e", width: 2, dash: [8, 4], points: { show: false } },
           { label: "mean of 0.25 ms blocks", stroke: "#d9822b", width: 2, points: { show: false },
