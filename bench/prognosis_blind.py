@@ -187,11 +187,14 @@ def main(argv=None) -> int:
     settings = DriftSettings()
     jobs = [(s, [[a.seed, k, b] for b in range(lo, min(a.per_shape, lo + 10))], settings.to_dict())
             for k, s in enumerate(SHAPES) if s in a.shapes for lo in range(0, a.per_shape, 10)]
+    load_before = Path("/proc/loadavg").read_text().split()[:3]
     t0 = time.perf_counter()
     with ProcessPoolExecutor(a.workers) as ex:
         rows = [r for chunk in ex.map(_job, jobs) for r in chunk]
     result = {"per_shape_histories": a.per_shape, "seed": a.seed, "workers": a.workers,
-              "runtime_s": round(time.perf_counter() - t0, 1), **summarise(rows),
+              "runtime_s": round(time.perf_counter() - t0, 1),
+              "load_average_before_after": [load_before, Path("/proc/loadavg").read_text().split()[:3]],
+              **summarise(rows),
               "targets": {"coverage_90_each": [0.80, 0.97], "coverage_90_overall": [0.85, 0.95],
                           "healthy": "<= 2 x true share + 0.01", "date_coverage_bursty": 0.85}}
     a.out.parent.mkdir(parents=True, exist_ok=True)
