@@ -30,6 +30,9 @@ from service.alarms.state import DriftState
 from service.breaker_limits import ParameterLimit
 from service.prognosis.paths import FLAT_PRECISION, SHAPES, fit_path, lfo_log_density, shape_column
 from service.prognosis.averaging import pseudo_bma_plus_weights
+from service.prognosis.dates import date_quantiles, operation_rate as renewal_rate, recent_gaps
+from service.prognosis.changepoint import fit_change_point
+from service.prognosis.wiener import fit_wiener
 
 MODEL = ("linear and power-law degradation paths, Bayesian updating (Gebraeel et al. 2005), "
          "stacked by their one-step-ahead predictions (Yao et al. 2018)")
@@ -169,45 +172,69 @@ def prognose(state: DriftState, history: Sequence[FitObservation], limit: Parame
         return Prognosis(name, bounds[0][1], bounds[0][0], text, baseline=model.centre, status="no trend",
                          limits=all_limits,
                          reason=f"{len(history) - start} fits since the {basis}; a trend needs {MIN_BASIS}")
-    fit = fit_paths(state, history, start)
+    fit = fit_paths(state, history, start, monotone=len(bounds) == 1)
     mix = Mixture(fit.candidates, fit.weights)
     p_falling = mix.probability_falling()
     direction, bound = bounds[0] if len(bounds) == 1 else bounds[0 if p_falling >= 0.5 else 1]
     n_now = float(len(history) - 1)
-    rate = operation_rate(history)
+    times_days = np.array([(o.time - history[0].time).total_seconds() / 86400.0 for o in history])
+    rate = renewal_rate(times_days)
     horizon = rate * DAYS_PER_YEAR * horizon_years if rate else float(ENDURANCE_OPERATIONS)
     level_now = float(mix.level_quantiles(np.array([n_now]), (0.5,))[0][0])
     past = level_now < bound if direction == "falling" else level_now > bound
     common = dict(baseline=model.centre, current=level_now, basis=basis, basis_operations=fit.basis_operations,
                   rate_per_day=rate, horizon_operations=horizon, horizon_years=horizon_years if rate else None,
                   reference_temperature=model.t_mean, limits=all_limits,
-                  paths={f"{c.variant} power {c.shape:g}": round(float(w), 4) for c, w in zip(fit.candidates, fit.weights)},
+                  paths={_label(c): round(float(w), 4) for c, w in zip(fit.candidates, fit.weights)},
                   seasonal=fit.seasonal, low_frequency_sd=fit.low_frequency_sd)
     ops = [mix.crossing_quantile(bound, direction, p, n_now=n_now, horizon=horizon) for p in QUANTILES]
-    p_within = float(mix.crossing_probability(bound, direction, np.array([n_now + horizon]))[0])
+    ahead, cdf = mix.crossing_cdf(bound, direction, n_now=n_now, horizon=horizon)
+    p_within = float(np.interp(horizon, ahead, cdf))
     years = f"{horizon_years:g} years" if rate else f"{ENDURANCE_OPERATIONS:,} operations"
+    whole = [_whole(x) if x <= horizon else None for x in ops]
+    last_time = history[-1].time
+    dates: list = [None, None, None]
+    if rate and whole[0] is not None:
+        ahead, cdf = mix.crossing_cdf(bound, direction, n_now=n_now, horizon=horizon)
+        days = date_quantiles(cdf, ahead, recent_gaps(times_days), QUANTILES)
+        dates = [last_time + timedelta(days=d) if (x is not None and math.isfinite(d)
+                                                   and d <= DAYS_PER_YEAR * horizon_years) else None
+                 for x, d in zip(whole, days)]
     # The averaged drift's 90 % interval holds zero: not a due date. Say so rather than a median.
     if not past and 0.05 < p_falling < 0.95:
         # A slope not credibly different from zero is not a due date: say so rather than a median.
         # The earliest crossing (5 %) still stands: a slope that may be zero may also be steep.
-        early = ops[0] if ops[0] <= horizon else None
         return Prognosis(name, bound, direction, text, **common, probability_within_horizon=p_within,
-                         operations_to_limit=Quantiles(early, None, None) if early is not None else None,
-                         date_to_limit=Quantiles(history[-1].time + timedelta(days=early / rate), None, None)
-                         if early is not None and rate else None,
+                         operations_to_limit=Quantiles(whole[0], None, None) if whole[0] is not None else None,
+                         date_to_limit=Quantiles(dates[0], None, None) if dates[0] is not None else None,
                          fan=fan(mix, fit, n_now, [ops[0], math.inf, math.inf], horizon), status="no trend",
                          reason=f"no trend: the slope's 90 % interval holds zero; not expected to reach "
                                 f"its limit within {years} at this rate")
-    within = [x if x <= horizon else None for x in ops]
-    last_time = history[-1].time
-    dates = [last_time + timedelta(days=x / rate) if (x is not None and rate) else None for x in within]
+    # A median beyond the horizon keeps the earlier quantiles that lie within it (the 5 % one:
+    # the earliest credible crossing); None only for what lies beyond.
     return Prognosis(
         name, bound, direction, text, **common,
-        operations_to_limit=Quantiles(*within) if within[1] is not None else None,
-        date_to_limit=Quantiles(*dates) if dates[1] is not None else None,
+        operations_to_limit=Quantiles(*whole) if whole[0] is not None else None,
+        date_to_limit=Quantiles(*dates) if dates[0] is not None else None,
         probability_within_horizon=p_within, fan=fan(mix, fit, n_now, ops, horizon),
         status="crossed" if past else "ok",
         reason="the trend is past the limit now: service is due" if past else "")
+
+
+def _whole(x: float) -> int:
+    """A crossing quantile in whole operations: the first opening by which it has crossed."""
+    return int(math.ceil(x - 1e-9)) if x > 0 else 0
+
+
+def _ahead(horizon: float) -> np.ndarray:
+    """Operations ahead at which the crossing's distribution is evaluated (fine near, coarse far)."""
+    return np.unique(np.concatenate([np.arange(1.0, 200.0), np.geomspace(200.0, 2.0 * horizon + 200.0, 400)]))
+
+
+def _label(c) -> str:
+    if hasattr(c, "kind"):
+        return f"{c.kind} process (diffusion ratio {c.ratio:g})"
+    return f"{c.variant} power {c.shape:g}"
 
 
 @dataclass(frozen=True)
@@ -232,7 +259,7 @@ def _day_of_year(times) -> np.ndarray:
     return np.array([t.timetuple().tm_yday - 1 + (t.hour + t.minute / 60.0) / 24.0 for t in times])
 
 
-def fit_paths(state: DriftState, history: list, start: int) -> PathsFit:
+def fit_paths(state: DriftState, history: list, start: int, *, monotone: bool = False) -> PathsFit:
     """Fit every candidate path to the basis (``history[start:]``) and weight them by stacking.
 
     Candidates: each power-law shape (paths.SHAPES), either continuing from the level before
@@ -252,7 +279,7 @@ def fit_paths(state: DriftState, history: list, start: int) -> PathsFit:
     lo = 0 if seasonal else max(0, start - PRE_FITS)
     n, y, w, dt = n_all[lo:], y_all[lo:], w_all[lo:], dt_all[lo:]
     harmonics, harmonic_precision = [], 0.0
-    if not model.compensated:
+    if True:  # the annual harmonics: fitted without temperature, a bound on the slow remainder with it
         angle = 2.0 * np.pi * _day_of_year([o.time for o in history]) / DAYS_PER_YEAR
         ids = {w_[0] for w_ in state.window}
         ref = np.array([o.operation_id in ids for o in history]) if ids else np.arange(len(history)) < model.n
@@ -293,7 +320,7 @@ def fit_paths(state: DriftState, history: list, start: int) -> PathsFit:
     if (in_basis & keep).sum() < MIN_BASIS:
         keep = np.ones(len(n), dtype=bool)
     lf_sd = None
-    if not model.compensated and not seasonal and low_frequency(resid[keep]) is not None:
+    if not seasonal and low_frequency(resid[keep]) is not None:
         # Less than a year without temperature, and the residual's autocorrelation shows a slow
         # component: the annual cycle cannot be fitted, but its size can be bounded. Each
         # harmonic's coefficient gets a N(0, v) prior (a cycle of amplitude A has variance
@@ -306,13 +333,45 @@ def fit_paths(state: DriftState, history: list, start: int) -> PathsFit:
     first_pred = int(np.flatnonzero(in_basis[keep])[0]) + MIN_BASIS
     for variant in variants:
         for k in SHAPES:
+            if k < 1 and variant == "anchored":
+                # A slowing path anchored at the healthy level is steepest at the change point:
+                # it reads a late change point's drop as a slowing leak. Slowing paths are free.
+                continue
             c = fit(k, variant, keep)
             cands.append(replace(c, variant=variant))
             x, prec = design(k, variant)
             prec = np.where(prec > 0, prec, FLAT_PRECISION)
             lps.append(lfo_log_density(np.ascontiguousarray(x[keep]), y[keep], w[keep], prec, model.sd ** 2,
                                        float(model.dof), first_pred))
-    weights = pseudo_bma_plus_weights(np.array(lps))
+    # Nuisances shared by the stochastic and change-point paths: (column, prior variance in
+    # sigma^2 units, inf flat) of the harmonics, the temperature slope's error.
+    shared = []
+    if harmonics and (seasonal or harmonic_precision > 0):
+        shared += [(h_[keep], math.inf if seasonal else 1.0 / harmonic_precision) for h_ in harmonics]
+    if common_var > 0:
+        shared.append((dt[keep], common_var / model.sd ** 2))
+    # The stochastic paths (wiener.py): the level wanders everywhere (a step at the change point
+    # too), the drift acts from the basis's start.
+    nuis = shared
+    wfit, wlp, _ = fit_wiener(n[keep], y[keep], w[keep], np.stack([c_ for c_, _ in nuis], axis=1) if nuis else None,
+                              [v_ for _, v_ in nuis], start=float(start), scale_ops=scale_ops, prior_sd=model.sd,
+                              prior_dof=float(model.dof), first=first_pred)
+    kinds = ("wiener", "gamma") if monotone else ("wiener",)
+    families = [[(c_, 1.0)] for c_ in cands] + [[(replace(wfit, kind=k_, _draws={}), 1.0 / len(kinds)) for k_ in kinds]]
+    lps.append(wlp)
+    # The path since the last change of slope found on the history (changepoint.py): a family of
+    # lines, one per change point, weighted within it by the change point's posterior.
+    cp = fit_change_point(n[keep], y[keep], w[keep], np.stack([c_ for c_, _ in shared], axis=1) if shared else None,
+                          np.array([1.0 / v_ for _, v_ in shared]), d0=d0, scale_ops=scale_ops,
+                          prior_sd=model.sd, prior_dof=float(model.dof), first=first_pred)
+    if cp is not None:
+        lps.append(cp[1])
+        families.append([(replace(f_, variant="since the last change"), wt) for f_, wt in cp[0]])
+    # Each family (a curve, the stochastic path, the change-point path) is weighted by its
+    # predictions (pseudo-BMA+); within a family, by its own weights.
+    fw = pseudo_bma_plus_weights(np.array(lps))
+    cands = [c_ for fam in families for c_, _ in fam]
+    weights = np.array([f_ * wt for f_, fam in zip(fw, families) for _, wt in fam])
     sel = keep & in_basis
     return PathsFit(cands, weights, n[sel], y[sel], int(sel.sum()), seasonal, lf_sd)
 
@@ -367,6 +426,7 @@ class Mixture:
         self.c = [c for c, w in zip(candidates, weights) if w > 1e-6]
         self.w = np.array([w for w in weights if w > 1e-6])
         self.w = self.w / self.w.sum()
+        self._cdf = {}
 
     def probability_falling(self) -> float:
         """P(the drift coefficient b < 0) under the average [-]: with 0.05-0.95 its 90 % interval
@@ -380,28 +440,38 @@ class Mixture:
         sign = 1.0 if direction == "falling" else -1.0
         out = np.zeros(len(n))
         for c, w in zip(self.c, self.w):
+            if hasattr(c, "crossing_probability"):  # a stochastic path: its first passage
+                out += w * c.crossing_probability(limit, direction, n)
+                continue
             mean, scale = c.level(n)
             z = sign * (limit - mean) / np.maximum(scale, 1e-300)
             out += w * special.stdtr(c.dof, z)
         return out
 
+    def crossing_cdf(self, limit: float, direction: str, *, n_now: float, horizon: float):
+        """(operations ahead [0, then _ahead(horizon)], P(crossed by then)), computed once per
+        question and kept: the quantiles and the dates all read it."""
+        key = (limit, direction, n_now, horizon)
+        if key not in self._cdf:
+            ahead = np.concatenate([[0.0], _ahead(horizon)])
+            self._cdf[key] = (ahead, np.maximum.accumulate(self.crossing_probability(limit, direction, n_now + ahead)))
+        return self._cdf[key]
+
     def crossing_quantile(self, limit: float, direction: str, p: float, *, n_now: float,
                           horizon: float) -> float:
-        """Operations from now until the level has crossed ``limit`` with probability ``p``;
-        0 when it has already, ``inf`` when not within 2x the horizon."""
-        if self.crossing_probability(limit, direction, np.array([n_now]))[0] >= p:
-            return 0.0
-        ahead = np.unique(np.concatenate([np.arange(1.0, 200.0), np.geomspace(200.0, 2.0 * horizon + 200.0, 400)]))
-        f = self.crossing_probability(limit, direction, n_now + ahead)
+        """Whole operations from now by which the level has crossed ``limit`` with probability
+        ``p`` (the first opening with P >= p); 0 when it has already, ``inf`` when not within 2x
+        the horizon."""
+        ahead, f = self.crossing_cdf(limit, direction, n_now=n_now, horizon=horizon)
         hit = np.flatnonzero(f >= p)
         if not hit.size:
             return math.inf
         j = hit[0]
-        lo, hi = (ahead[j - 1] if j > 0 else 0.0), ahead[j]
-        for _ in range(40):  # bisection to a hundredth of an operation
-            if hi - lo < 0.01:
-                break
-            mid = 0.5 * (lo + hi)
+        if j == 0:
+            return 0.0
+        lo, hi = math.floor(ahead[j - 1]), math.ceil(ahead[j])
+        while hi - lo > 1:  # bisection over whole operations between two grid points
+            mid = (lo + hi) // 2
             if self.crossing_probability(limit, direction, np.array([n_now + mid]))[0] >= p:
                 hi = mid
             else:
