@@ -54,7 +54,7 @@ def days_to_operations(ops: np.ndarray, gaps: np.ndarray, *, seed: int = SEED) -
     size = g.size
     if size == 0:
         return out
-    b = max(1, int(round(math.sqrt(size))))
+    b = max(1, round(math.sqrt(size)))
     cs = np.concatenate([[0.0], np.cumsum(np.concatenate([g, g[:b]]))])
     block = cs[b:b + size] - cs[:size]  # the sum of the b gaps starting at each gap
     rng = np.random.default_rng(seed)

@@ -18,20 +18,27 @@ calibration: docs/prognosis.md.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from datetime import datetime, timedelta
-from typing import Sequence
 
 import numpy as np
-from scipy import special, stats
 
 from service.alarms.observation import FitObservation
 from service.alarms.state import DriftState
 from service.breaker_limits import ParameterLimit
-from service.prognosis.paths import FLAT_PRECISION, SHAPES, fit_path, lfo_log_density, shape_column
 from service.prognosis.averaging import pseudo_bma_plus_weights
-from service.prognosis.dates import date_quantiles, operation_rate as renewal_rate, recent_gaps
 from service.prognosis.changepoint import fit_change_point
+from service.prognosis.dates import date_quantiles, recent_gaps
+from service.prognosis.dates import operation_rate as renewal_rate
+from service.prognosis.mixture import Mixture
+from service.prognosis.paths import (
+    FLAT_PRECISION,
+    SHAPES,
+    fit_path,
+    lfo_log_density,
+    shape_column,
+)
 from service.prognosis.wiener import fit_wiener
 
 MODEL = ("linear and power-law degradation paths, Bayesian updating (Gebraeel et al. 2005), "
@@ -185,7 +192,7 @@ def prognose(state: DriftState, history: Sequence[FitObservation], limit: Parame
     common = dict(baseline=model.centre, current=level_now, basis=basis, basis_operations=fit.basis_operations,
                   rate_per_day=rate, horizon_operations=horizon, horizon_years=horizon_years if rate else None,
                   reference_temperature=model.t_mean, limits=all_limits,
-                  paths={_label(c): round(float(w), 4) for c, w in zip(fit.candidates, fit.weights)},
+                  paths=_weights_by_label(fit),
                   seasonal=fit.seasonal, low_frequency_sd=fit.low_frequency_sd)
     ops = [mix.crossing_quantile(bound, direction, p, n_now=n_now, horizon=horizon) for p in QUANTILES]
     ahead, cdf = mix.crossing_cdf(bound, direction, n_now=n_now, horizon=horizon)
@@ -223,18 +230,22 @@ def prognose(state: DriftState, history: Sequence[FitObservation], limit: Parame
 
 def _whole(x: float) -> int:
     """A crossing quantile in whole operations: the first opening by which it has crossed."""
-    return int(math.ceil(x - 1e-9)) if x > 0 else 0
-
-
-def _ahead(horizon: float) -> np.ndarray:
-    """Operations ahead at which the crossing's distribution is evaluated (fine near, coarse far)."""
-    return np.unique(np.concatenate([np.arange(1.0, 200.0), np.geomspace(200.0, 2.0 * horizon + 200.0, 400)]))
+    return math.ceil(x - 1e-9) if x > 0 else 0
 
 
 def _label(c) -> str:
     if hasattr(c, "kind"):
         return f"{c.kind} process (diffusion ratio {c.ratio:g})"
+    if c.variant == "since the last change":
+        return "line since the last change of slope"
     return f"{c.variant} power {c.shape:g}"
+
+
+def _weights_by_label(fit) -> dict:
+    out: dict = {}
+    for c, w in zip(fit.candidates, fit.weights):
+        out[_label(c)] = out.get(_label(c), 0.0) + float(w)
+    return {k: round(v, 4) for k, v in out.items()}
 
 
 @dataclass(frozen=True)
@@ -287,6 +298,12 @@ def fit_paths(state: DriftState, history: list, start: int, *, monotone: bool = 
             ref = np.arange(len(history)) < model.n
         harmonics = [(col - col[ref].mean())[lo:] for col in (np.cos(angle), np.sin(angle))]
     common_var = model.slope_var if model.compensated else 0.0
+    # Temperature's effect may bend (oil viscosity is convex in T; a heater holds the oil above a
+    # floor): a second slope above the reference temperature, (T - T_ref)+ [K] scaled like dt,
+    # with a N(0, slope^2) prior (a bend as large as the learnt slope itself). Two slopes meeting
+    # at the reference temperature leave the level there, the one the limit refers to, unchanged.
+    bend = np.maximum(dt, 0.0)
+    bend_var = (model.slope ** 2 + model.slope_var) if model.compensated and (bend > 0).any() else 0.0
     d0 = float(start) - 1.0  # d = 1 at the basis's first fit
     scale_ops = max(float(len(history) - start), 1.0)
     in_basis = n >= start
@@ -304,6 +321,9 @@ def fit_paths(state: DriftState, history: list, start: int, *, monotone: bool = 
         if common_var > 0:
             cols.append(dt)
             prec.append(model.sd ** 2 / common_var)
+        if bend_var > 0:
+            cols.append(bend)
+            prec.append(model.sd ** 2 / bend_var)
         return np.stack(cols, axis=1), np.array(prec)
 
     def fit(k, variant, sel, with_harmonics=True):
@@ -350,6 +370,8 @@ def fit_paths(state: DriftState, history: list, start: int, *, monotone: bool = 
         shared += [(h_[keep], math.inf if seasonal else 1.0 / harmonic_precision) for h_ in harmonics]
     if common_var > 0:
         shared.append((dt[keep], common_var / model.sd ** 2))
+    if bend_var > 0:
+        shared.append((bend[keep], bend_var / model.sd ** 2))
     # The stochastic paths (wiener.py): the level wanders everywhere (a step at the change point
     # too), the drift acts from the basis's start.
     nuis = shared
@@ -419,84 +441,6 @@ def cycle_variance(x: np.ndarray, h: np.ndarray, y: np.ndarray, w: np.ndarray, s
     return best_v
 
 
-class Mixture:
-    """The stacked average of candidate paths: a mixture of Student t levels."""
-
-    def __init__(self, candidates, weights):
-        self.c = [c for c, w in zip(candidates, weights) if w > 1e-6]
-        self.w = np.array([w for w in weights if w > 1e-6])
-        self.w = self.w / self.w.sum()
-        self._cdf = {}
-
-    def probability_falling(self) -> float:
-        """P(the drift coefficient b < 0) under the average [-]: with 0.05-0.95 its 90 % interval
-        holds zero, "no trend"."""
-        return float(sum(w * special.stdtr(c.dof, -c.beta[1] / math.sqrt(max(c.cov[1, 1], 1e-300)))
-                         for c, w in zip(self.c, self.w)))
-
-    def crossing_probability(self, limit: float, direction: str, n: np.ndarray) -> np.ndarray:
-        """P(the level has crossed ``limit`` by operation ``n``) [-] (Gebraeel et al. 2005, eq. 12,
-        averaged over the candidates with their weights)."""
-        sign = 1.0 if direction == "falling" else -1.0
-        out = np.zeros(len(n))
-        for c, w in zip(self.c, self.w):
-            if hasattr(c, "crossing_probability"):  # a stochastic path: its first passage
-                out += w * c.crossing_probability(limit, direction, n)
-                continue
-            mean, scale = c.level(n)
-            z = sign * (limit - mean) / np.maximum(scale, 1e-300)
-            out += w * special.stdtr(c.dof, z)
-        return out
-
-    def crossing_cdf(self, limit: float, direction: str, *, n_now: float, horizon: float):
-        """(operations ahead [0, then _ahead(horizon)], P(crossed by then)), computed once per
-        question and kept: the quantiles and the dates all read it."""
-        key = (limit, direction, n_now, horizon)
-        if key not in self._cdf:
-            ahead = np.concatenate([[0.0], _ahead(horizon)])
-            self._cdf[key] = (ahead, np.maximum.accumulate(self.crossing_probability(limit, direction, n_now + ahead)))
-        return self._cdf[key]
-
-    def crossing_quantile(self, limit: float, direction: str, p: float, *, n_now: float,
-                          horizon: float) -> float:
-        """Whole operations from now by which the level has crossed ``limit`` with probability
-        ``p`` (the first opening with P >= p); 0 when it has already, ``inf`` when not within 2x
-        the horizon."""
-        ahead, f = self.crossing_cdf(limit, direction, n_now=n_now, horizon=horizon)
-        hit = np.flatnonzero(f >= p)
-        if not hit.size:
-            return math.inf
-        j = hit[0]
-        if j == 0:
-            return 0.0
-        lo, hi = math.floor(ahead[j - 1]), math.ceil(ahead[j])
-        while hi - lo > 1:  # bisection over whole operations between two grid points
-            mid = (lo + hi) // 2
-            if self.crossing_probability(limit, direction, np.array([n_now + mid]))[0] >= p:
-                hi = mid
-            else:
-                lo = mid
-        return float(hi)
-
-    def level_quantiles(self, n: np.ndarray, ps) -> list[np.ndarray]:
-        """The level's p-quantiles after operations ``n`` [unit], by bisection on the mixture cdf."""
-        ms = [c.level(n) for c in self.c]
-        mean = np.array([m for m, _ in ms])  # [K, G]
-        scale = np.maximum(np.array([s for _, s in ms]), 1e-300)
-        dof, w = np.array([c.dof for c in self.c])[:, None], self.w[:, None]
-        # Student t with >= 3 dof: a 5-95 % quantile lies within 12 scales of some component's mean.
-        lo, hi = (mean - 12 * scale).min(axis=0) - 1e-9, (mean + 12 * scale).max(axis=0) + 1e-9
-        out = []
-        for p in ps:
-            a, b = lo.copy(), hi.copy()
-            for _ in range(36):  # 24 scales / 2^36: far below a fit's resolution
-                mid = 0.5 * (a + b)
-                below = (w * special.stdtr(dof, (mid - mean) / scale)).sum(axis=0) < p
-                a, b = np.where(below, mid, a), np.where(below, b, mid)
-            out.append(0.5 * (a + b))
-        return out
-
-
 def fan(mix: Mixture, fit: PathsFit, n_now: float, ops: list[float], horizon: float) -> dict:
     """The projected level's 5/50/95 % band from the basis's start to past the 95 % crossing
     (or the horizon), operation counts from the basis's first fit [operations]."""
@@ -509,7 +453,7 @@ def fan(mix: Mixture, fit: PathsFit, n_now: float, ops: list[float], horizon: fl
     ahead = min(max(ahead * 1.1, 0.25 * span), horizon)
     grid = np.linspace(n[0], n_now + ahead, FAN_POINTS)
     p05, median, p95 = mix.level_quantiles(grid, QUANTILES)
-    r = lambda a: [round(float(v), 6) for v in a]  # noqa: E731
+    r = lambda a: [round(float(v), 6) for v in a]
     return {"operations": r(grid - n[0]), "median": r(median), "p05": r(p05),
             "p95": r(p95), "now": n_now - n[0],
             "observed": {"operations": r(n - n[0]), "value": r(fit.y)}}
