@@ -24,6 +24,10 @@ from service.prognosis.paths import FLAT_PRECISION, fit_path, lfo_log_density
 GRID = 16  # candidate change points
 MIN_AFTER = 8  # fits after a change a slope is drawn through
 MIN_BEFORE = 3
+# The change is looked for among the last RECENT fits (and the line drawn through them): a
+# bounded cost per prognosis however long the basis, and a change of slope older than that is
+# the alarm's change point's business.
+RECENT = 400
 
 
 def fit_change_point(n, y, w, nuis, nuis_prec, *, d0: float, scale_ops: float, prior_sd: float,
@@ -32,6 +36,14 @@ def fit_change_point(n, y, w, nuis, nuis_prec, *, d0: float, scale_ops: float, p
     nuis_prec [q]: nuisance columns and their prior precisions (sigma^-2 units, 0 flat).
     Returns ([(PathFit, posterior weight of its tau)], log predictive densities [m]) or None when
     the history is too short for a change."""
+    if len(n) > RECENT:
+        cut = len(n) - RECENT
+        n, y, w = n[cut:], y[cut:], w[cut:]
+        nuis = None if nuis is None else nuis[cut:]
+        first = max(first - cut, 10)  # the restarted lines need a few fits before they predict
+        lp_full_len = cut
+    else:
+        lp_full_len = 0
     m = len(n)
     taus = np.unique(np.linspace(max(MIN_BEFORE, first), m - MIN_AFTER, GRID).astype(int))
     taus = taus[(taus >= MIN_BEFORE) & (taus <= m - MIN_AFTER)]
@@ -70,4 +82,5 @@ def fit_change_point(n, y, w, nuis, nuis_prec, *, d0: float, scale_ops: float, p
                      prior_sd=prior_sd, prior_dof=prior_dof, shape=1.0, scale_ops=scale_ops, d0=d0)
         out.append((f, float(wt)))
     total = sum(wt for _, wt in out)
+    mixed = np.concatenate([np.full(lp_full_len, -np.inf), mixed])
     return [(f, wt / total) for f, wt in out], mixed

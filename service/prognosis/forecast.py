@@ -55,6 +55,7 @@ DAYS_PER_YEAR = 365.25
 # probability 6e-5, so a basis of 1 000 fits loses 0.06 good ones on average.
 REJECT_Z = 4.0
 FAN_POINTS = 41
+RECENT_MIN = 20
 # Fits before the change point that anchor the path's start (a drift from the healthy level):
 # the baseline window's size, enough to fix that level to sd/sqrt(200).
 PRE_FITS = 200
@@ -391,11 +392,21 @@ def fit_paths(state: DriftState, history: list, start: int, *, monotone: bool = 
         families.append([(replace(f_, variant="since the last change"), wt) for f_, wt in cp[0]])
     # Each family (a curve, the stochastic path, the change-point path) is weighted by its
     # predictions (pseudo-BMA+); within a family, by its own weights.
-    fw = pseudo_bma_plus_weights(np.array(lps))
+    fw = pseudo_bma_plus_weights(recent_columns(np.array(lps)))
     cands = [c_ for fam in families for c_, _ in fam]
     weights = np.array([f_ * wt for f_, fam in zip(fw, families) for _, wt in fam])
     sel = keep & in_basis
     return PathsFit(cands, weights, n[sel], y[sel], int(sel.sum()), seasonal, lf_sd)
+
+
+def recent_columns(lp: np.ndarray) -> np.ndarray:
+    """The later half of the columns every candidate predicts (at least RECENT_MIN of them): the
+    weights ask which path predicts the breaker as it is now, so a path that fitted the early
+    basis well but not what followed a change (a leak that stopped, a seal that tore) loses."""
+    idx = np.flatnonzero(np.isfinite(lp).all(axis=0))
+    if idx.size > 2 * RECENT_MIN:
+        idx = idx[max(idx.size // 2, 0):]
+    return lp[:, idx]
 
 
 def low_frequency(resid: np.ndarray) -> tuple[float, float, float] | None:

@@ -48,7 +48,7 @@ from scipy import special
 # Diffusion ratios r = var(W per operation) / sigma^2 tried. A level that wanders by one
 # run-to-run sd in 10 000 operations is r = 1e-4; by one sd per operation, r = 1.
 DIFFUSION_GRID = (0.0, 1e-4, 3e-4, 1e-3, 3e-3, 1e-2, 3e-2, 0.1, 0.3, 1.0)
-DRAWS = 200
+DRAWS = 128  # stratified (Latin hypercube) normal draws
 SEED = 2012
 DIFFUSE = 1e8  # prior variance of the level and drift [sigma^2 units]: flat in practice
 
@@ -145,7 +145,8 @@ class WienerFit:
             except np.linalg.LinAlgError:
                 chol = np.diag(np.sqrt(np.maximum(np.diag(cov), 0.0)))
             g = math.sqrt(self.dof / 1.0) / np.sqrt(rng.chisquare(self.dof, DRAWS))  # t scale factor
-            z = rng.standard_normal((DRAWS, 2)) @ chol.T * g[:, None]
+            u = (np.stack([rng.permutation(DRAWS) for _ in range(2)], axis=1) + rng.random((DRAWS, 2))) / DRAWS
+            z = special.ndtri(u) @ chol.T * g[:, None]
             lvl = self.beta[0] + z[:, 0]
             b = self.beta[1] + z[:, 1]
             q = self.diffusion * g * g
