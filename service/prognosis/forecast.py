@@ -9,10 +9,18 @@ calibration: docs/prognosis.md.
 - The basis: with an active drift alarm, the fits since the alarm's change point (where its
   CUSUM last left zero: the maximum-likelihood change point of a CUSUM, Page 1954, Hinkley
   1971); otherwise every fit since the last baseline reset.
-- The degradation path is linear in operations with Bayesian updating (trend.py). The date
-  follows from the breaker's own rate of fitted openings over the last year.
+- The degradation path is an average of candidates weighted by their one-step-ahead predictions
+  over the later half of the basis (pseudo-BMA+, Yao et al. 2018): straight and accelerating
+  curves with Bayesian updating (paths.py; Lu & Meeker 1993, Gebraeel et al. 2005), a Wiener
+  process with drift and, for a one-sided limit, a gamma process, their diffusion estimated from
+  the history (wiener.py; Si et al. 2012, van Noortwijk 2009), and a line since the last change
+  of slope found on the history (changepoint.py; after Adams & MacKay 2007). With a temperature
+  channel a second slope above the reference temperature lets the effect bend; the slow
+  remainder (annual harmonics with a REML-bounded prior) is noise with or without one.
+- The crossing's quantiles are whole operations (mixture.py). The dates carry the duty cycle:
+  the renewal rate of the last year's gaps and a block bootstrap of them (dates.py).
 - Beyond ``horizon_years`` (at that rate) a quantile is reported as None: "no crossing within
-  N years", not a huge number.
+  N years", not a huge number; a 5 % quantile within the horizon is kept when the median is not.
 """
 
 from __future__ import annotations
@@ -41,8 +49,10 @@ from service.prognosis.paths import (
 )
 from service.prognosis.wiener import fit_wiener
 
-MODEL = ("linear and power-law degradation paths, Bayesian updating (Gebraeel et al. 2005), "
-         "stacked by their one-step-ahead predictions (Yao et al. 2018)")
+MODEL = ("linear and power-law degradation paths (Gebraeel et al. 2005), a Wiener/gamma process with its "
+         "diffusion from the history (Si et al. 2012; van Noortwijk 2009) and a line since the last change "
+         "of slope (after Adams & MacKay 2007), averaged by their one-step-ahead predictions (pseudo-BMA+, "
+         "Yao et al. 2018)")
 QUANTILES = (0.05, 0.5, 0.95)
 # Fewest fits a trend is drawn through: with two free coefficients, three residual degrees of
 # freedom of its own besides the baseline's prior.
@@ -141,14 +151,14 @@ def compensated(state: DriftState, history: Sequence[FitObservation]) -> tuple[n
     return values, s2 / (s2 + extra), dt
 
 
+def _days(history: Sequence[FitObservation]) -> np.ndarray:
+    return np.array([(o.time - history[0].time).total_seconds() / 86400.0 for o in history])
+
+
 def operation_rate(history: Sequence[FitObservation]) -> float | None:
-    """Fitted openings per day over the last year of ``history`` [1/day]; None below a day."""
-    if len(history) < 2:
-        return None
-    last = history[-1].time
-    recent = [o.time for o in history if o.time >= last - timedelta(days=DAYS_PER_YEAR)]
-    span_days = (last - recent[0]).total_seconds() / 86400.0
-    return (len(recent) - 1) / span_days if span_days >= 1.0 and len(recent) >= 2 else None
+    """Fitted openings per day [1/day]: one over the mean gap of the last year (the renewal rate,
+    dates.py); None when the gaps span less than a day."""
+    return renewal_rate(_days(history)) if history else None
 
 
 def basis_start(state: DriftState, m: int) -> tuple[int, str]:
@@ -185,7 +195,7 @@ def prognose(state: DriftState, history: Sequence[FitObservation], limit: Parame
     p_falling = mix.probability_falling()
     direction, bound = bounds[0] if len(bounds) == 1 else bounds[0 if p_falling >= 0.5 else 1]
     n_now = float(len(history) - 1)
-    times_days = np.array([(o.time - history[0].time).total_seconds() / 86400.0 for o in history])
+    times_days = _days(history)
     rate = renewal_rate(times_days)
     horizon = rate * DAYS_PER_YEAR * horizon_years if rate else float(ENDURANCE_OPERATIONS)
     level_now = float(mix.level_quantiles(np.array([n_now]), (0.5,))[0][0])
@@ -272,9 +282,10 @@ def _day_of_year(times) -> np.ndarray:
 
 
 def fit_paths(state: DriftState, history: list, start: int, *, monotone: bool = False) -> PathsFit:
-    """Fit every candidate path to the basis (``history[start:]``) and weight them by stacking.
+    """Fit every candidate path to the basis (``history[start:]``) and weight them by pseudo-BMA+.
 
-    Candidates: each power-law shape (paths.SHAPES), either continuing from the level before
+    Families: the stochastic path (wiener.py; Wiener and, when ``monotone``, gamma sharing its
+    weight), the line since the last change of slope (changepoint.py), and each power-law shape (paths.SHAPES), either continuing from the level before
     the change point ("anchored": a drift that starts from the healthy baseline, which fixes
     the path's start with the pre-change fits) or with a level of its own after it ("free": a
     step, then a drift). Without a temperature channel and with a year of history since the
