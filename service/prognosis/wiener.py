@@ -55,16 +55,17 @@ DIFFUSE = 1e8  # prior variance of the level and drift [sigma^2 units]: flat in 
 
 @njit(cache=True)
 def kalman(y, w, h, dn, gate, prior_var, r, prior_sd2, prior_dof, first):
-    """One pass of the Kalman filter of the model above, in units of sigma^2.
+    """One pass of the Kalman filter of the model above, every variance in units of sigma^2.
 
-    y [m], w [m] : values and relative precisions; h [m, p] : observation rows, column 0 the
-    level, column 1 zero (the drift enters the transition), the rest nuisances; dn [m] :
-    operations since the previous fit (0 for the first); gate [m] : 1 where the drift acts
-    between the previous fit and this one [-]; prior_var [p] : initial variances; r : diffusion
-    ratio; the drift's column is scaled so that b is per S operations (dn given as dn / S with
-    ``gate``; the diffusion uses dn_ops = dn * S supplied through ``r`` by the caller).
-    Returns (log densities [m] (-inf before ``first``), state mean [p], covariance [p, p]
-    (sigma^2 units), ssr, dof)."""
+    y [m], w [m] : values [unit] and relative precisions [-]; h [m, p] : observation rows (column
+    0 the level, column 1 zero: the drift enters the transition, the rest nuisances, constant
+    states); dn [m] : step to each fit in basis lengths S [-] (0 for the first); gate [m] : the
+    share of that step at or after the drift's start [-]; prior_var [p] : initial variances;
+    r [m] : the wandering's variance over each step (ratio times operations); prior_sd2,
+    prior_dof : sigma^2's scaled-inverse-chi^2 prior; first : first fit whose density is scored.
+    Returns (log predictive densities [m], -inf before ``first``; state mean [p]; its scale
+    matrix [p, p]; the innovations' weighted sum of squares; the degrees of freedom).
+    """
     m, p = h.shape
     out = np.full(m, -np.inf)
     x = np.zeros(p)

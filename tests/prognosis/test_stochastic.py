@@ -7,7 +7,7 @@ from scipy import stats
 
 from service.prognosis.changepoint import fit_change_point
 from service.prognosis.dates import days_to_operations, operation_rate, recent_gaps
-from service.prognosis.paths import FLAT_PRECISION, lfo_log_density
+from service.prognosis.paths import lfo_log_density
 from service.prognosis.wiener import first_passage, fit_wiener, kalman
 
 
@@ -62,7 +62,7 @@ def test_the_diffusion_is_found_in_a_wandering_history_and_not_in_a_straight_one
     noise = 0.1 * rng.standard_normal(m)
     straight = 10 - 0.002 * n + noise
     wander = 10 + np.cumsum(0.05 * rng.standard_normal(m)) + noise
-    kw = dict(start=0.0, scale_ops=float(m), prior_sd=0.1, prior_dof=20.0, first=5)
+    kw = {"start": 0.0, "scale_ops": float(m), "prior_sd": 0.1, "prior_dof": 20.0, "first": 5}
     _, _, r_straight = fit_wiener(n, straight, np.ones(m), None, [], **kw)
     fit, _, r_wander = fit_wiener(n, wander, np.ones(m), None, [], **kw)
     assert r_straight <= 1e-3 and r_wander >= 0.03
