@@ -365,6 +365,7 @@ def main(argv=None) -> int:
             "faults_injected": dict(daqs.faults),
             "duration_s": round(elapsed, 1), "operations_per_s": round(result["operations_stored"] / elapsed, 3),
             "cores": os.cpu_count(), "finished_at": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+            "load_average_at_end": Path("/proc/loadavg").read_text().split()[:3],
         })
         result["rss_growth_rel"] = round(result["rss_mb_end"] / result["rss_mb_after_warmup"] - 1, 4) \
             if result["rss_mb_after_warmup"] else None
@@ -474,6 +475,11 @@ def analyse(engine, url: str, tmp: Path, scripts, daqs: Daqs, per: list[int]) ->
         "capture_bytes_per_operation": round(capture_bytes / max(n_ops, 1)),
         "fit_visible_p95_s_first_10pct": p95(first), "fit_visible_p95_s_last_10pct": p95(last),
         "fit_visible_p95_ratio_last_first": round(p95(last) / p95(first), 3) if first and last else None,
+        # issue 43: the p95 at the last 1,000 operations against the first 1,000 (after warm-up)
+        "fit_visible_p95_s_first_1000": p95([d for _, d in steady[:1000]]),
+        "fit_visible_p95_s_last_1000": p95([d for _, d in steady[-1000:]]),
+        "fit_visible_p95_ratio_last_first_1000": round(p95([d for _, d in steady[-1000:]])
+                                                       / p95([d for _, d in steady[:1000]]), 3) if steady else None,
         "fit_visible_warmup_operations_excluded": warmup,
         "fit_visible_p95_s_warmup": p95([d for _, d in latency[:warmup]]),
         **judge_alarms(scripts, alarms, names),

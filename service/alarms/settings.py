@@ -3,7 +3,8 @@
 Thresholds are in units of the standardised deviation (dimensionless, "baseline sigmas"), so one
 set of values serves every watched parameter whatever its unit. The decision thresholds h are
 not set by hand: they follow from the target false-alarm rates through the CUSUM's average run
-length (``service.alarms.design``), see docs/alarms.md.
+length (``service.alarms.design``), see docs/alarms.md. They are designed once per settings and
+kept (``service.alarms.design_cache``), so loading the settings does not pay the design.
 """
 
 from __future__ import annotations
@@ -116,18 +117,16 @@ class DriftSettings(BaseModel):
     @cached_property
     def h_warning(self) -> float:
         """Warning threshold [z]: in-control ARL of one side = sides * 10^4 / design rate."""
-        from service.alarms.design import threshold_for_arl
+        from service.alarms.design_cache import threshold
 
-        return threshold_for_arl(self.sides * 1e4 / self.design_false_warnings_per_10k,
-                                 k=self.k, z_cap=self.z_cap)
+        return threshold(self.sides * 1e4 / self.design_false_warnings_per_10k, k=self.k, z_cap=self.z_cap)
 
     @cached_property
     def h_alarm(self) -> float:
         """Alarm threshold [z], from ``design_false_alarms_per_10k`` like ``h_warning``."""
-        from service.alarms.design import threshold_for_arl
+        from service.alarms.design_cache import threshold
 
-        return threshold_for_arl(self.sides * 1e4 / self.design_false_alarms_per_10k,
-                                 k=self.k, z_cap=self.z_cap)
+        return threshold(self.sides * 1e4 / self.design_false_alarms_per_10k, k=self.k, z_cap=self.z_cap)
 
     def direction(self, parameter: str) -> str:
         """The watched direction of ``parameter``; ValueError if it is not watched."""

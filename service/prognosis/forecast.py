@@ -9,30 +9,50 @@ calibration: docs/prognosis.md.
 - The basis: with an active drift alarm, the fits since the alarm's change point (where its
   CUSUM last left zero: the maximum-likelihood change point of a CUSUM, Page 1954, Hinkley
   1971); otherwise every fit since the last baseline reset.
-- The degradation path is linear in operations with Bayesian updating (trend.py). The date
-  follows from the breaker's own rate of fitted openings over the last year.
+- The degradation path is an average of candidates weighted by their one-step-ahead predictions
+  over the later half of the basis (pseudo-BMA+, Yao et al. 2018): straight and accelerating
+  curves with Bayesian updating (paths.py; Lu & Meeker 1993, Gebraeel et al. 2005), a Wiener
+  process with drift and, for a one-sided limit, a gamma process, their diffusion estimated from
+  the history (wiener.py; Si et al. 2012, van Noortwijk 2009), and a line since the last change
+  of slope found on the history (changepoint.py; after Adams & MacKay 2007). With a temperature
+  channel a second slope above the reference temperature lets the effect bend; the slow
+  remainder (annual harmonics with a REML-bounded prior) is noise with or without one.
+- The crossing's quantiles are whole operations (mixture.py). The dates carry the duty cycle:
+  the renewal rate of the last year's gaps and a block bootstrap of them (dates.py).
 - Beyond ``horizon_years`` (at that rate) a quantile is reported as None: "no crossing within
-  N years", not a huge number.
+  N years", not a huge number; a 5 % quantile within the horizon is kept when the median is not.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from datetime import datetime, timedelta
-from typing import Sequence
 
 import numpy as np
-from scipy import special, stats
 
 from service.alarms.observation import FitObservation
 from service.alarms.state import DriftState
 from service.breaker_limits import ParameterLimit
-from service.prognosis.paths import FLAT_PRECISION, SHAPES, fit_path, lfo_log_density, shape_column
 from service.prognosis.averaging import pseudo_bma_plus_weights
+from service.prognosis.changepoint import fit_change_point
+from service.prognosis.dates import date_quantiles, recent_gaps
+from service.prognosis.dates import operation_rate as renewal_rate
+from service.prognosis.mixture import Mixture
+from service.prognosis.paths import (
+    FLAT_PRECISION,
+    SHAPES,
+    fit_path,
+    lfo_log_density,
+    shape_column,
+)
+from service.prognosis.wiener import fit_wiener
 
-MODEL = ("linear and power-law degradation paths, Bayesian updating (Gebraeel et al. 2005), "
-         "stacked by their one-step-ahead predictions (Yao et al. 2018)")
+MODEL = ("linear and power-law degradation paths (Gebraeel et al. 2005), a Wiener/gamma process with its "
+         "diffusion from the history (Si et al. 2012; van Noortwijk 2009) and a line since the last change "
+         "of slope (after Adams & MacKay 2007), averaged by their one-step-ahead predictions (pseudo-BMA+, "
+         "Yao et al. 2018)")
 QUANTILES = (0.05, 0.5, 0.95)
 # Fewest fits a trend is drawn through: with two free coefficients, three residual degrees of
 # freedom of its own besides the baseline's prior.
@@ -45,6 +65,7 @@ DAYS_PER_YEAR = 365.25
 # probability 6e-5, so a basis of 1 000 fits loses 0.06 good ones on average.
 REJECT_Z = 4.0
 FAN_POINTS = 41
+RECENT_MIN = 20
 # Fits before the change point that anchor the path's start (a drift from the healthy level):
 # the baseline window's size, enough to fix that level to sd/sqrt(200).
 PRE_FITS = 200
@@ -130,14 +151,14 @@ def compensated(state: DriftState, history: Sequence[FitObservation]) -> tuple[n
     return values, s2 / (s2 + extra), dt
 
 
+def _days(history: Sequence[FitObservation]) -> np.ndarray:
+    return np.array([(o.time - history[0].time).total_seconds() / 86400.0 for o in history])
+
+
 def operation_rate(history: Sequence[FitObservation]) -> float | None:
-    """Fitted openings per day over the last year of ``history`` [1/day]; None below a day."""
-    if len(history) < 2:
-        return None
-    last = history[-1].time
-    recent = [o.time for o in history if o.time >= last - timedelta(days=DAYS_PER_YEAR)]
-    span_days = (last - recent[0]).total_seconds() / 86400.0
-    return (len(recent) - 1) / span_days if span_days >= 1.0 and len(recent) >= 2 else None
+    """Fitted openings per day [1/day]: one over the mean gap of the last year (the renewal rate,
+    dates.py); None when the gaps span less than a day."""
+    return renewal_rate(_days(history)) if history else None
 
 
 def basis_start(state: DriftState, m: int) -> tuple[int, str]:
@@ -169,45 +190,73 @@ def prognose(state: DriftState, history: Sequence[FitObservation], limit: Parame
         return Prognosis(name, bounds[0][1], bounds[0][0], text, baseline=model.centre, status="no trend",
                          limits=all_limits,
                          reason=f"{len(history) - start} fits since the {basis}; a trend needs {MIN_BASIS}")
-    fit = fit_paths(state, history, start)
+    fit = fit_paths(state, history, start, monotone=len(bounds) == 1)
     mix = Mixture(fit.candidates, fit.weights)
     p_falling = mix.probability_falling()
     direction, bound = bounds[0] if len(bounds) == 1 else bounds[0 if p_falling >= 0.5 else 1]
     n_now = float(len(history) - 1)
-    rate = operation_rate(history)
+    times_days = _days(history)
+    rate = renewal_rate(times_days)
     horizon = rate * DAYS_PER_YEAR * horizon_years if rate else float(ENDURANCE_OPERATIONS)
     level_now = float(mix.level_quantiles(np.array([n_now]), (0.5,))[0][0])
     past = level_now < bound if direction == "falling" else level_now > bound
     common = dict(baseline=model.centre, current=level_now, basis=basis, basis_operations=fit.basis_operations,
                   rate_per_day=rate, horizon_operations=horizon, horizon_years=horizon_years if rate else None,
                   reference_temperature=model.t_mean, limits=all_limits,
-                  paths={f"{c.variant} power {c.shape:g}": round(float(w), 4) for c, w in zip(fit.candidates, fit.weights)},
+                  paths=_weights_by_label(fit),
                   seasonal=fit.seasonal, low_frequency_sd=fit.low_frequency_sd)
     ops = [mix.crossing_quantile(bound, direction, p, n_now=n_now, horizon=horizon) for p in QUANTILES]
-    p_within = float(mix.crossing_probability(bound, direction, np.array([n_now + horizon]))[0])
+    ahead, cdf = mix.crossing_cdf(bound, direction, n_now=n_now, horizon=horizon)
+    p_within = float(np.interp(horizon, ahead, cdf))
     years = f"{horizon_years:g} years" if rate else f"{ENDURANCE_OPERATIONS:,} operations"
+    whole = [_whole(x) if x <= horizon else None for x in ops]
+    last_time = history[-1].time
+    dates: list = [None, None, None]
+    if rate and whole[0] is not None:
+        ahead, cdf = mix.crossing_cdf(bound, direction, n_now=n_now, horizon=horizon)
+        days = date_quantiles(cdf, ahead, recent_gaps(times_days), QUANTILES)
+        dates = [last_time + timedelta(days=d) if (x is not None and math.isfinite(d)
+                                                   and d <= DAYS_PER_YEAR * horizon_years) else None
+                 for x, d in zip(whole, days)]
     # The averaged drift's 90 % interval holds zero: not a due date. Say so rather than a median.
     if not past and 0.05 < p_falling < 0.95:
         # A slope not credibly different from zero is not a due date: say so rather than a median.
         # The earliest crossing (5 %) still stands: a slope that may be zero may also be steep.
-        early = ops[0] if ops[0] <= horizon else None
         return Prognosis(name, bound, direction, text, **common, probability_within_horizon=p_within,
-                         operations_to_limit=Quantiles(early, None, None) if early is not None else None,
-                         date_to_limit=Quantiles(history[-1].time + timedelta(days=early / rate), None, None)
-                         if early is not None and rate else None,
+                         operations_to_limit=Quantiles(whole[0], None, None) if whole[0] is not None else None,
+                         date_to_limit=Quantiles(dates[0], None, None) if dates[0] is not None else None,
                          fan=fan(mix, fit, n_now, [ops[0], math.inf, math.inf], horizon), status="no trend",
                          reason=f"no trend: the slope's 90 % interval holds zero; not expected to reach "
                                 f"its limit within {years} at this rate")
-    within = [x if x <= horizon else None for x in ops]
-    last_time = history[-1].time
-    dates = [last_time + timedelta(days=x / rate) if (x is not None and rate) else None for x in within]
+    # A median beyond the horizon keeps the earlier quantiles that lie within it (the 5 % one:
+    # the earliest credible crossing); None only for what lies beyond.
     return Prognosis(
         name, bound, direction, text, **common,
-        operations_to_limit=Quantiles(*within) if within[1] is not None else None,
-        date_to_limit=Quantiles(*dates) if dates[1] is not None else None,
+        operations_to_limit=Quantiles(*whole) if whole[0] is not None else None,
+        date_to_limit=Quantiles(*dates) if dates[0] is not None else None,
         probability_within_horizon=p_within, fan=fan(mix, fit, n_now, ops, horizon),
         status="crossed" if past else "ok",
         reason="the trend is past the limit now: service is due" if past else "")
+
+
+def _whole(x: float) -> int:
+    """A crossing quantile in whole operations: the first opening by which it has crossed."""
+    return math.ceil(x - 1e-9) if x > 0 else 0
+
+
+def _label(c) -> str:
+    if hasattr(c, "kind"):
+        return f"{c.kind} process (diffusion ratio {c.ratio:g})"
+    if c.variant == "since the last change":
+        return "line since the last change of slope"
+    return f"{c.variant} power {c.shape:g}"
+
+
+def _weights_by_label(fit) -> dict:
+    out: dict = {}
+    for c, w in zip(fit.candidates, fit.weights):
+        out[_label(c)] = out.get(_label(c), 0.0) + float(w)
+    return {k: round(v, 4) for k, v in out.items()}
 
 
 @dataclass(frozen=True)
@@ -232,10 +281,11 @@ def _day_of_year(times) -> np.ndarray:
     return np.array([t.timetuple().tm_yday - 1 + (t.hour + t.minute / 60.0) / 24.0 for t in times])
 
 
-def fit_paths(state: DriftState, history: list, start: int) -> PathsFit:
-    """Fit every candidate path to the basis (``history[start:]``) and weight them by stacking.
+def fit_paths(state: DriftState, history: list, start: int, *, monotone: bool = False) -> PathsFit:
+    """Fit every candidate path to the basis (``history[start:]``) and weight them by pseudo-BMA+.
 
-    Candidates: each power-law shape (paths.SHAPES), either continuing from the level before
+    Families: the stochastic path (wiener.py; Wiener and, when ``monotone``, gamma sharing its
+    weight), the line since the last change of slope (changepoint.py), and each power-law shape (paths.SHAPES), either continuing from the level before
     the change point ("anchored": a drift that starts from the healthy baseline, which fixes
     the path's start with the pre-change fits) or with a level of its own after it ("free": a
     step, then a drift). Without a temperature channel and with a year of history since the
@@ -252,7 +302,7 @@ def fit_paths(state: DriftState, history: list, start: int) -> PathsFit:
     lo = 0 if seasonal else max(0, start - PRE_FITS)
     n, y, w, dt = n_all[lo:], y_all[lo:], w_all[lo:], dt_all[lo:]
     harmonics, harmonic_precision = [], 0.0
-    if not model.compensated:
+    if True:  # the annual harmonics: fitted without temperature, a bound on the slow remainder with it
         angle = 2.0 * np.pi * _day_of_year([o.time for o in history]) / DAYS_PER_YEAR
         ids = {w_[0] for w_ in state.window}
         ref = np.array([o.operation_id in ids for o in history]) if ids else np.arange(len(history)) < model.n
@@ -260,6 +310,12 @@ def fit_paths(state: DriftState, history: list, start: int) -> PathsFit:
             ref = np.arange(len(history)) < model.n
         harmonics = [(col - col[ref].mean())[lo:] for col in (np.cos(angle), np.sin(angle))]
     common_var = model.slope_var if model.compensated else 0.0
+    # Temperature's effect may bend (oil viscosity is convex in T; a heater holds the oil above a
+    # floor): a second slope above the reference temperature, (T - T_ref)+ [K] scaled like dt,
+    # with a N(0, slope^2) prior (a bend as large as the learnt slope itself). Two slopes meeting
+    # at the reference temperature leave the level there, the one the limit refers to, unchanged.
+    bend = np.maximum(dt, 0.0)
+    bend_var = (model.slope ** 2 + model.slope_var) if model.compensated and (bend > 0).any() else 0.0
     d0 = float(start) - 1.0  # d = 1 at the basis's first fit
     scale_ops = max(float(len(history) - start), 1.0)
     in_basis = n >= start
@@ -277,6 +333,9 @@ def fit_paths(state: DriftState, history: list, start: int) -> PathsFit:
         if common_var > 0:
             cols.append(dt)
             prec.append(model.sd ** 2 / common_var)
+        if bend_var > 0:
+            cols.append(bend)
+            prec.append(model.sd ** 2 / bend_var)
         return np.stack(cols, axis=1), np.array(prec)
 
     def fit(k, variant, sel, with_harmonics=True):
@@ -293,7 +352,7 @@ def fit_paths(state: DriftState, history: list, start: int) -> PathsFit:
     if (in_basis & keep).sum() < MIN_BASIS:
         keep = np.ones(len(n), dtype=bool)
     lf_sd = None
-    if not model.compensated and not seasonal and low_frequency(resid[keep]) is not None:
+    if not seasonal and low_frequency(resid[keep]) is not None:
         # Less than a year without temperature, and the residual's autocorrelation shows a slow
         # component: the annual cycle cannot be fitted, but its size can be bounded. Each
         # harmonic's coefficient gets a N(0, v) prior (a cycle of amplitude A has variance
@@ -306,15 +365,59 @@ def fit_paths(state: DriftState, history: list, start: int) -> PathsFit:
     first_pred = int(np.flatnonzero(in_basis[keep])[0]) + MIN_BASIS
     for variant in variants:
         for k in SHAPES:
+            if k < 1 and variant == "anchored":
+                # A slowing path anchored at the healthy level is steepest at the change point:
+                # it reads a late change point's drop as a slowing leak. Slowing paths are free.
+                continue
             c = fit(k, variant, keep)
             cands.append(replace(c, variant=variant))
             x, prec = design(k, variant)
             prec = np.where(prec > 0, prec, FLAT_PRECISION)
             lps.append(lfo_log_density(np.ascontiguousarray(x[keep]), y[keep], w[keep], prec, model.sd ** 2,
                                        float(model.dof), first_pred))
-    weights = pseudo_bma_plus_weights(np.array(lps))
+    # Nuisances shared by the stochastic and change-point paths: (column, prior variance in
+    # sigma^2 units, inf flat) of the harmonics, the temperature slope's error.
+    shared = []
+    if harmonics and (seasonal or harmonic_precision > 0):
+        shared += [(h_[keep], math.inf if seasonal else 1.0 / harmonic_precision) for h_ in harmonics]
+    if common_var > 0:
+        shared.append((dt[keep], common_var / model.sd ** 2))
+    if bend_var > 0:
+        shared.append((bend[keep], bend_var / model.sd ** 2))
+    # The stochastic paths (wiener.py): the level wanders everywhere (a step at the change point
+    # too), the drift acts from the basis's start.
+    nuis = shared
+    wfit, wlp, _ = fit_wiener(n[keep], y[keep], w[keep], np.stack([c_ for c_, _ in nuis], axis=1) if nuis else None,
+                              [v_ for _, v_ in nuis], start=float(start), scale_ops=scale_ops, prior_sd=model.sd,
+                              prior_dof=float(model.dof), first=first_pred)
+    kinds = ("wiener", "gamma") if monotone else ("wiener",)
+    families = [[(c_, 1.0)] for c_ in cands] + [[(replace(wfit, kind=k_, _draws={}), 1.0 / len(kinds)) for k_ in kinds]]
+    lps.append(wlp)
+    # The path since the last change of slope found on the history (changepoint.py): a family of
+    # lines, one per change point, weighted within it by the change point's posterior.
+    cp = fit_change_point(n[keep], y[keep], w[keep], np.stack([c_ for c_, _ in shared], axis=1) if shared else None,
+                          np.array([1.0 / v_ for _, v_ in shared]), d0=d0, scale_ops=scale_ops,
+                          prior_sd=model.sd, prior_dof=float(model.dof), first=first_pred)
+    if cp is not None:
+        lps.append(cp[1])
+        families.append([(replace(f_, variant="since the last change"), wt) for f_, wt in cp[0]])
+    # Each family (a curve, the stochastic path, the change-point path) is weighted by its
+    # predictions (pseudo-BMA+); within a family, by its own weights.
+    fw = pseudo_bma_plus_weights(recent_columns(np.array(lps)))
+    cands = [c_ for fam in families for c_, _ in fam]
+    weights = np.array([f_ * wt for f_, fam in zip(fw, families) for _, wt in fam])
     sel = keep & in_basis
     return PathsFit(cands, weights, n[sel], y[sel], int(sel.sum()), seasonal, lf_sd)
+
+
+def recent_columns(lp: np.ndarray) -> np.ndarray:
+    """The later half of the columns every candidate predicts (at least RECENT_MIN of them): the
+    weights ask which path predicts the breaker as it is now, so a path that fitted the early
+    basis well but not what followed a change (a leak that stopped, a seal that tore) loses."""
+    idx = np.flatnonzero(np.isfinite(lp).all(axis=0))
+    if idx.size > 2 * RECENT_MIN:
+        idx = idx[max(idx.size // 2, 0):]
+    return lp[:, idx]
 
 
 def low_frequency(resid: np.ndarray) -> tuple[float, float, float] | None:
@@ -360,73 +463,6 @@ def cycle_variance(x: np.ndarray, h: np.ndarray, y: np.ndarray, w: np.ndarray, s
     return best_v
 
 
-class Mixture:
-    """The stacked average of candidate paths: a mixture of Student t levels."""
-
-    def __init__(self, candidates, weights):
-        self.c = [c for c, w in zip(candidates, weights) if w > 1e-6]
-        self.w = np.array([w for w in weights if w > 1e-6])
-        self.w = self.w / self.w.sum()
-
-    def probability_falling(self) -> float:
-        """P(the drift coefficient b < 0) under the average [-]: with 0.05-0.95 its 90 % interval
-        holds zero, "no trend"."""
-        return float(sum(w * special.stdtr(c.dof, -c.beta[1] / math.sqrt(max(c.cov[1, 1], 1e-300)))
-                         for c, w in zip(self.c, self.w)))
-
-    def crossing_probability(self, limit: float, direction: str, n: np.ndarray) -> np.ndarray:
-        """P(the level has crossed ``limit`` by operation ``n``) [-] (Gebraeel et al. 2005, eq. 12,
-        averaged over the candidates with their weights)."""
-        sign = 1.0 if direction == "falling" else -1.0
-        out = np.zeros(len(n))
-        for c, w in zip(self.c, self.w):
-            mean, scale = c.level(n)
-            z = sign * (limit - mean) / np.maximum(scale, 1e-300)
-            out += w * special.stdtr(c.dof, z)
-        return out
-
-    def crossing_quantile(self, limit: float, direction: str, p: float, *, n_now: float,
-                          horizon: float) -> float:
-        """Operations from now until the level has crossed ``limit`` with probability ``p``;
-        0 when it has already, ``inf`` when not within 2x the horizon."""
-        if self.crossing_probability(limit, direction, np.array([n_now]))[0] >= p:
-            return 0.0
-        ahead = np.unique(np.concatenate([np.arange(1.0, 200.0), np.geomspace(200.0, 2.0 * horizon + 200.0, 400)]))
-        f = self.crossing_probability(limit, direction, n_now + ahead)
-        hit = np.flatnonzero(f >= p)
-        if not hit.size:
-            return math.inf
-        j = hit[0]
-        lo, hi = (ahead[j - 1] if j > 0 else 0.0), ahead[j]
-        for _ in range(40):  # bisection to a hundredth of an operation
-            if hi - lo < 0.01:
-                break
-            mid = 0.5 * (lo + hi)
-            if self.crossing_probability(limit, direction, np.array([n_now + mid]))[0] >= p:
-                hi = mid
-            else:
-                lo = mid
-        return float(hi)
-
-    def level_quantiles(self, n: np.ndarray, ps) -> list[np.ndarray]:
-        """The level's p-quantiles after operations ``n`` [unit], by bisection on the mixture cdf."""
-        ms = [c.level(n) for c in self.c]
-        mean = np.array([m for m, _ in ms])  # [K, G]
-        scale = np.maximum(np.array([s for _, s in ms]), 1e-300)
-        dof, w = np.array([c.dof for c in self.c])[:, None], self.w[:, None]
-        # Student t with >= 3 dof: a 5-95 % quantile lies within 12 scales of some component's mean.
-        lo, hi = (mean - 12 * scale).min(axis=0) - 1e-9, (mean + 12 * scale).max(axis=0) + 1e-9
-        out = []
-        for p in ps:
-            a, b = lo.copy(), hi.copy()
-            for _ in range(36):  # 24 scales / 2^36: far below a fit's resolution
-                mid = 0.5 * (a + b)
-                below = (w * special.stdtr(dof, (mid - mean) / scale)).sum(axis=0) < p
-                a, b = np.where(below, mid, a), np.where(below, b, mid)
-            out.append(0.5 * (a + b))
-        return out
-
-
 def fan(mix: Mixture, fit: PathsFit, n_now: float, ops: list[float], horizon: float) -> dict:
     """The projected level's 5/50/95 % band from the basis's start to past the 95 % crossing
     (or the horizon), operation counts from the basis's first fit [operations]."""
@@ -439,7 +475,7 @@ def fan(mix: Mixture, fit: PathsFit, n_now: float, ops: list[float], horizon: fl
     ahead = min(max(ahead * 1.1, 0.25 * span), horizon)
     grid = np.linspace(n[0], n_now + ahead, FAN_POINTS)
     p05, median, p95 = mix.level_quantiles(grid, QUANTILES)
-    r = lambda a: [round(float(v), 6) for v in a]  # noqa: E731
+    r = lambda a: [round(float(v), 6) for v in a]
     return {"operations": r(grid - n[0]), "median": r(median), "p05": r(p05),
             "p95": r(p95), "now": n_now - n[0],
             "observed": {"operations": r(n - n[0]), "value": r(fit.y)}}

@@ -60,14 +60,22 @@ class PathFit:
     def level(self, n: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
         """(mean, scale) of the true level after operation ``n`` [unit]; Student t with ``dof``."""
         phi = np.maximum(np.asarray(n, dtype=float) - self.d0, 0.0) / self.scale_ops
-        phi = phi ** self.shape
+        phi = shape_of(phi, self.shape)
         mean = self.beta[0] + self.beta[1] * phi
         var = self.cov[0, 0] + 2.0 * phi * self.cov[0, 1] + phi * phi * self.cov[1, 1] + self.extra_var
         return mean, np.sqrt(np.maximum(var, 0.0))
 
 
 def shape_column(n: np.ndarray, d0: float, scale_ops: float, k: float) -> np.ndarray:
-    return (np.maximum(n - d0, 0.0) / scale_ops) ** k
+    return shape_of(np.maximum(n - d0, 0.0) / scale_ops, k)
+
+
+def shape_of(x: np.ndarray, k: float) -> np.ndarray:
+    """phi_k(x) of x = d / S [-]: the power x^k for k > 0; for k < 0 the exponential approach
+    |k| (1 - exp(-x / |k|)), a rate that decays with the time constant |k| S (slope 1 at x = 0)."""
+    if k > 0:
+        return x ** k
+    return -k * (1.0 - np.exp(x / k))
 
 
 def fit_path(x: np.ndarray, y: np.ndarray, w: np.ndarray, prior_precision: np.ndarray, *,

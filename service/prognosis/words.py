@@ -94,8 +94,12 @@ def summary(p: dict) -> str:
         return (f"{who_cap}: no trend. {now[0].upper() + now[1:]}; {lim}. The slope's 90 % interval holds "
                 f"zero: not expected to reach its limit within {horizon_text(p)} at this rate.{early}")
     if not q or q.get("median") is None:
+        early = ""
+        if q and q.get("p05") is not None:  # the median lies beyond the horizon, the 5 % quantile within
+            when = f", {date(d['p05'])}" if d and d.get("p05") else ""
+            early = f" At the earliest (5 %): in {operations(q['p05'], par)}{when}."
         return (f"{who_cap}: not expected to reach its limit within {horizon_text(p)} at this rate. "
-                f"{now[0].upper() + now[1:]}; {lim}.")
+                f"{now[0].upper() + now[1:]}; {lim}.{early}")
     hi = operations(q["p95"], par) if q.get("p95") is not None else f"beyond {horizon_text(p)}"
     span = f"{int(round(q['p05'])):,}–{hi}" if q.get("p95") is not None else f"{operations(q['p05'], par)} to {hi}"
     when = ""

@@ -88,3 +88,25 @@ def test_temperature_of_the_last_operation_does_not_move_the_prognosis():
     moved = prognose(state, hot, LIMIT)
     assert abs(moved.operations_to_limit.median - base.operations_to_limit.median) < 0.1 * base.operations_to_limit.median
     assert abs(moved.current - base.current) < 0.01 * base.current
+
+
+def test_quantiles_are_whole_operations_and_the_5_percent_stays_within_the_horizon():
+    # a slow leak whose median crossing lies beyond 10 years at one opening a week, its 5 % within
+    rng = np.random.default_rng(8)
+    t0 = datetime(2024, 1, 1, tzinfo=timezone.utc)
+    n = 400
+    true = 40.0 * (1 - 0.0003 * np.maximum(np.arange(n) - 100, 0))  # crosses 533 openings on
+    obs = [FitObservation(operation_id=i + 1, time=t0 + timedelta(days=7 * i), value=float(v * (1 + 0.01 * rng.standard_normal())),
+                          ci95=(float(v * 0.99), float(v * 1.01))) for i, v in enumerate(true)]
+    settings = DriftSettings()
+    state = DriftState.new("DO", settings)
+    for o in obs:
+        state, _ = update(state, o, settings)
+    p = prognose(state, obs, ParameterLimit(min_change=-0.25))
+    q = p.operations_to_limit
+    assert q is not None and q.p05 is not None
+    assert all(v is None or float(v).is_integer() for v in (q.p05, q.median, q.p95))
+    assert q.p05 <= p.horizon_operations and q.median is None and q.p95 is None, q
+    assert 0.05 <= p.probability_within_horizon < 0.5
+    # the earliest crossing still stands, with its date
+    assert p.date_to_limit is not None and p.date_to_limit.p05 is not None and p.date_to_limit.median is None

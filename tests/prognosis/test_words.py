@@ -49,3 +49,12 @@ def test_values_have_three_significant_figures_and_a_minus_sign():
     assert words.value(23.96, "DO") == "24.0 s⁻¹" and words.value(4806.2, "BO") == "4,806 s⁻²"
     assert words.value(-0.01234, "DO") == "−0.0123 s⁻¹" and words.value(0.5, "BC") == "0.500"
     assert words.operations(1.2, "DO") == "1 opening" and words.operations(2.0, "CC") == "2 closings"
+
+
+def test_a_median_beyond_the_horizon_keeps_the_earliest_crossing():
+    p = base(status="ok", current=40.1, operations_to_limit={"p05": 2900, "median": None, "p95": None},
+             date_to_limit={"p05": "2033-06-01T00:00:00+00:00", "median": None, "p95": None})
+    text = words.summary(p)
+    assert text.startswith("Buffer damping DO: not expected to reach its limit within 10 years at this rate.")
+    assert text.endswith("At the earliest (5 %): in 2,900 openings, 2033-06-01."), text
+    assert words.fleet_text(p) == "buffer damping DO: not within 10 years"

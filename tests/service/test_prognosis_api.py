@@ -25,7 +25,9 @@ def test_leaking_breaker_gets_a_prognosis_with_quantiles(env):
     assert do["status"] == "ok" and do["direction"] == "falling" and do["basis"] == "change point"
     assert do["limit"] == pytest.approx(0.75 * do["baseline"])
     q = do["operations_to_limit"]
-    assert 0 < q["p05"] < q["median"] < q["p95"]
+    # whole openings (issue 43): a steep leak's 5 % and median may be the same opening
+    assert all(float(v).is_integer() for v in q.values())
+    assert 0 < q["p05"] <= q["median"] <= q["p95"] and q["p05"] < q["p95"]
     assert 3 <= q["median"] <= 14  # the truth is about 8 more openings
     assert do["date_to_limit"] is None and do["rate_per_day"] is None  # a minute of operations: no rate
     assert len(do["fan"]["median"]) == len(do["fan"]["operations"]) > 10
