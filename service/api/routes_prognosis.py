@@ -42,7 +42,7 @@ class ParameterPrognosis(BaseModel):
     current: float | None = Field(description="the trend's level now, temperature-compensated [unit]")
     baseline: float | None = Field(None, description="the compensated baseline [unit]")
     operations_to_limit: OperationQuantiles | None = Field(
-        description="openings still to go until the limit; null: no crossing within the horizon (or no trend)")
+        description="openings still to go until the limit, whole openings; null: not even the 5 % quantile within the horizon")
     date_to_limit: DateQuantiles | None = Field(
         description="the dates, from the breaker's own operation rate; null as above or without a rate")
     model: str
@@ -94,10 +94,11 @@ def _public(p) -> ParameterPrognosis:
 def prognosis(name: BreakerRef, session: SessionDep, settings: SettingsDep, _: ReaderDep) -> PrognosisResponse:
     """When each limited parameter crosses its limit: operations and date, 5/50/95 % quantiles.
 
-    A breaker without a `[limits]` table answers an empty list and says how to add one. A
-    quantile beyond the horizon (10 years at the breaker's own rate) is null: "no crossing
-    within 10 years", and so is the whole `operations_to_limit` when its median is. "no trend" (the
-    slope's 90 % interval holds zero) has no median; its 5 % quantile, the earliest crossing, stays.
+    A breaker without a `[limits]` table answers an empty list and says how to add one. Quantiles
+    are whole operations. A quantile beyond the horizon (10 years at the breaker's own rate) is
+    null: "no crossing within 10 years". When the median lies beyond the horizon, or the status is
+    "no trend" (the slope's 90 % interval holds zero), the median is null and the 5 % quantile, the
+    earliest crossing, stays when it lies within the horizon.
     """
     b = _breaker_ref(session, name)
     progs = breaker_prognoses(session, breaker=b, settings=settings.drift_settings)
