@@ -42,7 +42,7 @@ class ParameterPrognosis(BaseModel):
     current: float | None = Field(description="the trend's level now, temperature-compensated [unit]")
     baseline: float | None = Field(None, description="the compensated baseline [unit]")
     operations_to_limit: OperationQuantiles | None = Field(
-        description="openings still to go until the limit, whole openings; null: not even the 5 % quantile within the horizon")
+        description="openings still to go until the limit, whole openings; null: no crossing within the horizon")
     date_to_limit: DateQuantiles | None = Field(
         description="the dates, from the breaker's own operation rate; null as above or without a rate")
     model: str
