@@ -55,6 +55,6 @@ def test_a_median_beyond_the_horizon_keeps_the_earliest_crossing():
     p = base(status="ok", current=40.1, operations_to_limit={"p05": 2900, "median": None, "p95": None},
              date_to_limit={"p05": "2033-06-01T00:00:00+00:00", "median": None, "p95": None})
     text = words.summary(p)
-    assert text.startswith("Buffer damping DO: not expected to reach its limit within 10 years at this rate.")
+    assert text.startswith("Buffer damping (DO): not expected to reach its limit within 10 years at this rate.")
     assert text.endswith("At the earliest (5 %): in 2,900 openings, 2033-06-01."), text
-    assert words.fleet_text(p) == "buffer damping DO: not within 10 years"
+    assert words.fleet_text(p) == "buffer damping (DO): not within 10 years"

@@ -34,8 +34,8 @@ def test_leaking_breaker_gets_a_prognosis_with_quantiles(env):
     # BO is flat: "no trend", no median crossing, and the words say so with units
     bo = next(p for p in body["parameters"] if p["parameter"] == "BO")
     assert bo["status"] == "no trend" and (bo["operations_to_limit"] is None or bo["operations_to_limit"]["median"] is None)
-    assert bo["summary"].startswith("Opening spring factor BO: no trend.") and "s⁻²" in bo["summary"]
-    assert do["summary"].startswith("Buffer damping DO reaches its limit in about ") and "s⁻¹" in do["summary"]
+    assert bo["summary"].startswith("Opening spring force (BO): no trend.") and "s⁻²" in bo["summary"]
+    assert do["summary"].startswith("Buffer damping (DO) reaches its limit in about ") and "s⁻¹" in do["summary"]
     # ... and the worker stored the same median as the fits landed
     with env.Session() as s:
         rows = {r.parameter: r for r in s.scalars(select(PrognosisRow))}
