@@ -23,7 +23,8 @@ from ..mechanics.effects import EFFECT_NAMES
 from .decision import decide
 from .errors import DiagnosisError
 from .evidence import evidence
-from .hypotheses import catalogue_for, fit_reported, holdout
+from .hypotheses import catalogue_for, fit_reported
+from .linearised import holdout_shrink
 from .predictive import score
 from .measurement import next_measurement
 from .report import build
@@ -87,7 +88,7 @@ def _diagnose(windows, catalogue, strengths, next_measurements, t0, t_prepare):
     ev = evidence(fits, scores)
     dec = decide(fits, ev, catalogue, strengths)
     nm = next_measurement(fits, dec.rivals) if (next_measurements and dec.status == "ambiguous") else []
-    ho = holdout(windows, fits.hypotheses[dec.hypothesis]) if dec.status == "named" else None
+    ho = holdout_shrink(windows, fits.hypotheses[dec.hypothesis]) if dec.status == "named" else None
     result = build(fits, ev, dec, nm, ho, time.perf_counter() - t0, scores)
     result["stages_s"] = {"prepare": t_prepare, "evidence": t2 - t1, "report_refit": t3 - t2,
                           "rest": time.perf_counter() - t3}

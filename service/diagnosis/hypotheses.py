@@ -365,6 +365,7 @@ def _shrink(chi_before, chi_after, n):
     return 0.0 if g0 <= 0 else float(1.0 - np.sqrt(g1 / g0))
 
 
+REPORT_GN_ITERS = 4   # Gauss–Newton steps of the reported answer's refit (``linearised.refit``)
 REPORT_P = 0.05   # a hypothesis below this predictive weight is neither reported nor a rival worth refitting
 
 
@@ -373,33 +374,34 @@ def fit_reported(windows: Windows, scores, rivals: int = 1) -> "Fits":
     hypotheses holding catalogued effects (by the predictive weights) and ``outside`` on the
     best of them. The evidence is not taken from these fits (``predictive`` gives it); they say
     how far the gap shrinks and what the effect does to the parameters."""
+    from .linearised import refit as gn_refit
+
     hyps = {"none": none_fit(windows)}
     ranked = [k for k, p in scores.ranked() if k not in ("none", "outside_catalogue") and p >= REPORT_P]
     for name in ranked[:rivals]:
         effects = tuple(name.split("+"))
-        if name in getattr(scores, "exact", {}):
-            # the scoring's own exact refit, polished further for the report (it says how far
-            # the gap shrinks and the fitted strength)
-            h = scores.exact[name]
-            if len(effects) == 1 and h.chi2 > windows.n + 5.0 * np.sqrt(2.0 * windows.n):
-                # still above the noise: also the full screen from every start (multimodal shapes)
-                h0 = fit_hypothesis(windows, effects, family_starts(effects[0]))
-                h1 = refine_exact(windows, h0)
-                hb = fit_hypothesis(windows, effects, family_starts(effects[0]), caps=h1.captures)
-                h2 = refine_exact(windows, hb) if hb.chi2 < h1.chi2 else h1
-                h = min((h, h1, h2), key=lambda x: x.chi2)
-            hyps[name] = h
-            continue
-        if len(effects) == 1:
-            h = fit_hypothesis(windows, effects, family_starts(effects[0]))
-        else:
+        h = getattr(scores, "exact", {}).get(name)
+        if h is None:
+            # not refitted by the scoring: from its families' local refits (or their first start)
+            refined = getattr(scores, "refined", {})
             z0 = []
             for e in effects:
-                h1 = hyps.get(e) or fit_hypothesis(windows, (e,), family_starts(e))
+                h1 = refined.get(e) or hyps.get(e) or fit_hypothesis(windows, (e,), [family_starts(e)[0]])
                 z0 += [h1.phi[e][0], *h1.phi[e][1]]
-            h = fit_hypothesis(windows, effects, [np.array(z0, float)])
-        if h.chi2 < hyps["none"].chi2:
-            h = refine_exact(windows, h)
+            h = fit_hypothesis(windows, effects, [np.array(z0, float)], refine_nfev=REFINE_NFEV)
+        # the reported answer's refit, polished further: it says how far the gap shrinks and the
+        # fitted strength. An opening in linear algebra (Gauss–Newton, each capture's state
+        # eliminated); a closing by the trust region (its cam makes the state non-smooth)
+        polish = ((lambda hh: refine_exact(windows, hh)) if windows.operation == "close"
+                  else (lambda hh: gn_refit(windows, hh, iters=REPORT_GN_ITERS)))
+        h = polish(h)
+        if len(effects) == 1 and h.chi2 > windows.n + 5.0 * np.sqrt(2.0 * windows.n):
+            # still above the noise: the shape objective is multimodal (a contact touch's fraction
+            # moves a kink): screened again from every start at the states found
+            hb = fit_hypothesis(windows, effects, family_starts(effects[0]), caps=h.captures)
+            if hb.chi2 < h.chi2:
+                h2 = polish(hb)
+                h = min((h, h2), key=lambda x: x.chi2)
         hyps[name] = h
     fits = Fits(windows, hyps)
     cat = [h for h in hyps.values() if h.effects]
