@@ -14,6 +14,7 @@ over captures and blocks).
 from __future__ import annotations
 
 import re
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -168,6 +169,20 @@ def valid_samples(cap):
     mask = getattr(cap, "mask", None)          # an over-range mask from the reader, when it has one
     if mask is not None and np.shape(mask) == y.shape:
         valid &= ~np.asarray(mask, bool)
+    # an analyser's over-range spans (``meta['masked']``, carried filled by the reader): not
+    # measured, so left out of the evidence; the reduced fit runs on the bridged record (the
+    # estimator would refuse a window holding them: here they are named and diagnosed around)
+    meta = dict(getattr(cap, "meta", None) or {})
+    channel = meta.get("travel_channel", "travel")
+    spans = meta.get("masked") or []
+    ours = [m for m in spans if m.get("channel", channel) == channel]
+    for m in ours:
+        a, b = int(m.get("first_index", 0)), int(m.get("last_index", -1))
+        valid[max(a, 0): max(b + 1, 0)] = False
+    if ours:
+        meta["masked"] = [m for m in spans if m not in ours]
+        meta["masked_for_diagnosis"] = ours
+        cap = dataclasses.replace(cap, meta=meta)
     if valid.all():
         return cap, valid
     name = cap.source or "capture"
