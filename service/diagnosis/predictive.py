@@ -50,7 +50,7 @@ from scipy.signal import lfilter
 
 from ..mechanics.effects import REFERENCE_STRENGTHS as REALISTIC
 from .hypotheses import family_starts, signature
-from .linearised import refit as gn_refit
+from .linearised import exact_fit, member_from_pair
 from .windows import Windows
 
 AR_ORDER = 8           # the in-motion noise spectrum (vibration modes: two poles each)
@@ -62,7 +62,6 @@ FAMILY_DIM = 3         # a family's subspace: this many directions for every fam
 SHAPE_POINTS = 10      # quasi-random shapes per family (Halton, fixed) beside its starts
 PAIR_TOP = 3           # pairs of the best singles
 EXACT_TOP = 3          # effect hypotheses refitted jointly (and scored at their own profile)
-GN_ITERS = 3           # Gauss–Newton steps of that refit (``linearised``)
 REFINE_TOP = 3         # families refitted nonlinearly about their best point
 REFINE_NFEV = 12       # least-squares evaluations of that refit
 SEGMENT = 8            # columns of a local discrepancy (~16 ms), every half of it
@@ -327,86 +326,6 @@ def local_subspace(windows, caps, effect: str, st: float, sh):
     family_subspace(caps, effect)
 
 
-def exact_fit(windows, effects: tuple, refined: dict):
-    """The joint refit of a family or pair at its own nuisance profile, in linear algebra
-    (``linearised.refit``: Gauss–Newton with each capture's state eliminated), from the local
-    refits of its families; a pair starts from its members' parameters, unfitted.
-
-    A closing keeps the trust-region refit (``exact_fit_trust_region``): the cam's profile makes
-    the closing's state non-smooth, and the linear state step overshoots (measured on a contact
-    wipe of 3 closings: Gauss–Newton stopped at χ² 22,000 where the trust region reaches 1,100
-    on 1,005 blocks)."""
-    from .hypotheses import HypothesisFit, signature
-
-    if windows.operation == "close":
-        return exact_fit_trust_region(windows, effects, refined)
-
-    op, br = windows.operation, windows.breaker
-    phi = {}
-    for e in effects:
-        if e in refined:
-            phi[e] = refined[e].phi[e]
-        else:                       # not refined: its first deterministic start (the refit moves it)
-            z = np.asarray(best_point_w(windows, e), float)
-            phi[e] = (float(z[0]), z[1:])
-    if len(effects) == 1 and effects[0] in refined:
-        h0 = refined[effects[0]]
-    else:
-        caps = windows.captures
-        eff = [(e, float(phi[e][0]), np.asarray(phi[e][1], float)) for e in effects]
-        sigs = [signature(cw, op, br, eff) for cw in caps]
-        per = [float(np.sum(cw.project_out(cw.r - s) ** 2)) for cw, s in zip(caps, sigs)]
-        h0 = HypothesisFit(tuple(effects), phi, sum(1 + len(phi[e][1]) for e in effects), float(sum(per)), per,
-                           sigs, captures=list(caps))
-    h = gn_refit(windows, h0, iters=GN_ITERS, design_restart=len(effects) == 1)
-    n = windows.n
-    if len(effects) == 1 and h.chi2 > n + 5.0 * np.sqrt(2.0 * n):
-        # the shape objective is multimodal (a contact touch's fraction moves a kink): a single
-        # still above the noise is screened again from every start at the states it found
-        from .hypotheses import family_starts, fit_hypothesis
-
-        hb = fit_hypothesis(windows, effects, family_starts(effects[0]), caps=h.captures)
-        if hb.chi2 < h.chi2:
-            h2 = gn_refit(windows, hb, iters=GN_ITERS)
-            if h2.chi2 < h.chi2:
-                h = h2
-    return h
-
-
-def exact_fit_trust_region(windows, effects: tuple, refined: dict):
-    """The closing's exact joint refit (``hypotheses.refine_exact``) of a family or pair, from the local
-    refits of its families."""
-    from .hypotheses import fit_hypothesis, refine_exact
-
-    if len(effects) == 1:
-        h = refined.get(effects[0]) or fit_hypothesis(windows, effects, [best_point_w(windows, effects[0])])
-    else:
-        z0 = []
-        for e in effects:
-            h1 = refined.get(e) or fit_hypothesis(windows, (e,), [best_point_w(windows, e)])
-            z0 += [h1.phi[e][0], *h1.phi[e][1]]
-        h = fit_hypothesis(windows, effects, [np.array(z0, float)], refine_nfev=REFINE_NFEV)
-    h = refine_exact(windows, h)
-    n = windows.n
-    if len(effects) == 1 and h.chi2 > n + 5.0 * np.sqrt(2.0 * n):
-        # the shape objective is multimodal (a contact touch's fraction moves a kink): a single
-        # still above the noise is screened again from every start at the states it found
-        from .hypotheses import family_starts
-
-        hb = fit_hypothesis(windows, effects, family_starts(effects[0]), caps=h.captures)
-        if hb.chi2 < h.chi2:
-            h2 = refine_exact(windows, hb)
-            if h2.chi2 < h.chi2:
-                h = h2
-    return h
-
-
-
-def best_point_w(windows, effect):
-    from .hypotheses import family_starts
-    return family_starts(effect)[0]
-
-
 def outside(caps, bases, mean_rows, shift=0.0):
     """The best "outside the catalogue" alternative: the shared discrepancy everywhere or in one
     stretch (SEGMENT columns, every half of it), alone or beside each hypothesis of ``bases``
@@ -599,24 +518,10 @@ def score(windows: Windows, catalogue) -> Scores:
         if len(hyps[k]) == 1:
             # a pair must not win on convergence alone: the member is also refitted alone from the
             # pair's states and parameters, and the better fit kept
-            from .hypotheses import HypothesisFit, signature as _sig
-
             e = hyps[k][0]
             for pk, ph in list(exact.items()):
                 if e in hyps[pk] and len(hyps[pk]) == 2:
-                    if windows.operation == "close":       # the trust region (see exact_fit)
-                        from .hypotheses import fit_hypothesis, refine_exact
-
-                        z = np.concatenate([[ph.phi[e][0]], ph.phi[e][1]])
-                        alt = refine_exact(windows, fit_hypothesis(windows, (e,), [z], caps=ph.captures,
-                                                                   refine_nfev=REFINE_NFEV))
-                    else:
-                        eff = [(e, float(ph.phi[e][0]), np.asarray(ph.phi[e][1], float))]
-                        sg = [_sig(cw, windows.operation, windows.breaker, eff) for cw in ph.captures]
-                        per = [float(np.sum(cw.project_out(cw.r - x) ** 2)) for cw, x in zip(ph.captures, sg)]
-                        alt = gn_refit(windows, HypothesisFit((e,), {e: ph.phi[e]}, 1 + len(ph.phi[e][1]),
-                                                              float(sum(per)), per, sg, captures=list(ph.captures)),
-                                       iters=GN_ITERS)
+                    alt = member_from_pair(windows, e, ph)
                     if alt.chi2 < h.chi2:
                         h = alt
         exact[k] = h

@@ -13,8 +13,8 @@ over captures and blocks).
 
 from __future__ import annotations
 
-import re
 import dataclasses
+import re
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -27,7 +27,15 @@ from drivers.capture import CaptureError
 from ..estimation import FitError
 from ..mechanics.breaker import Breaker
 from ..mechanics.coordinates import operation_coordinate
-from .data import BLOCK_S, STATE, WindowData, design_state, model_curve, state_bounds, window_data
+from .data import (
+    BLOCK_S,
+    STATE,
+    WindowData,
+    design_state,
+    model_curve,
+    state_bounds,
+    window_data,
+)
 from .errors import DiagnosisError
 
 BASE_NFEV = 30      # polish of the reduced model (least_squares evaluations)
@@ -162,8 +170,6 @@ def valid_samples(cap):
     needs a uniform series), and the mask of the valid ones; the diagnosis's evidence later uses
     only blocks made of valid samples (``data.window_data``). Refused in words when too few are
     valid."""
-    import dataclasses
-
     y = np.asarray(cap.travel, float)
     valid = np.isfinite(y)
     mask = getattr(cap, "mask", None)          # an over-range mask from the reader, when it has one
@@ -199,7 +205,6 @@ def with_estimated_structure(breaker: Breaker, fits) -> Breaker:
     """``breaker`` with the α0 [rad] and CO [s⁻¹] its fits estimated (an ``[unknown_design]``:
     the median over the captures), so the diagnosis models the curve the fit found; unchanged
     when the design is known."""
-    import dataclasses
 
     values = {name: [f.structure[name]["value"] for f in fits if name in (getattr(f, "structure", None) or {})]
               for name in ("alpha0", "CO")}
