@@ -215,13 +215,20 @@ def holdout_shrink(windows, h):
         PG = cw.project_out(G)
         e = cw.project_out(cw.r - s)
         parts.append((PG, e, cw))
+    # a parameter the fit left on one of its bounds stays there (the active set): the others'
+    # step is solved for the free ones only
+    span = np.maximum(hi - lo, 1e-300)
+    free = ((z - lo) > 1e-6 * span) & ((hi - z) > 1e-6 * span)
+    parts = [(PG[:, free], e, cw) for PG, e, cw in parts]
     A = sum(PG.T @ PG for PG, _, _ in parts)
     b = sum(PG.T @ e for PG, e, _ in parts)
     out = []
     for PG, e, cw in parts:
         Aj, bj = A - PG.T @ PG, b - PG.T @ e
-        dz = np.linalg.lstsq(Aj + 1e-9 * np.trace(Aj) / max(z.size, 1) * np.eye(z.size), bj, rcond=None)[0]
-        zj = np.clip(z + dz, lo, hi) - z
+        k = int(free.sum())
+        dz = (np.linalg.lstsq(Aj + 1e-9 * max(np.trace(Aj), 1e-300) / max(k, 1) * np.eye(k), bj, rcond=None)[0]
+              if k else np.zeros(0))
+        zj = np.clip(z[free] + dz, lo[free], hi[free]) - z[free]
         after_res = e - PG @ zj
         before = float(np.sum(cw.project_out(cw.r) ** 2))
         out.append(_shrink(before, float(after_res @ after_res), cw.r.size))
