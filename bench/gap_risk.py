@@ -29,10 +29,19 @@ TARGETS = {"wrong_names": ("<=", 0.05), "healthy_none": (">=", 0.90), "names_rig
 
 def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("rows", nargs="*", type=Path, default=DEFAULT)
+    ap.add_argument("rows", nargs="*", type=Path, default=None)
+    ap.add_argument("--corpus", type=Path, help="a corpus written by bench/gap_corpus.py (var/gap_corpus)")
+    ap.add_argument("--variant", default="clean", choices=("clean", "realistic"))
     args = ap.parse_args(argv)
     rows, sources = [], []
-    for p in args.rows:
+    if args.corpus:
+        from service.studies.gap import corpus
+
+        got = [r for r in corpus.rows(args.corpus, args.variant) if r.get("probabilities")]
+        rows += got
+        sources.append({"corpus": str(args.corpus), "variant": args.variant, "rows": len(got),
+                        "refused": sum(1 for r in corpus.rows(args.corpus, args.variant) if r.get("error"))})
+    for p in (args.rows or ([] if args.corpus else DEFAULT)):
         d = json.loads(p.read_text())
         got = [r for r in d["rows"] if "probabilities" in r and r.get("probabilities")]
         rows += got
@@ -62,7 +71,8 @@ def main(argv=None) -> dict:
         rule = f"({r['rule']['margin']}, {r['rule']['share']})"
         print(f"{p.upper():9s} {rule:22s} {r['qhat']:6.3f}  " + "  ".join(cells)
               + f"  size {f['mean_set_size_detectable'] if f['mean_set_size_detectable'] is None else round(f['mean_set_size_detectable'], 2)}")
-    dest = ROOT / "bench/results/gap_study/risk_lopo.json"
+    dest = ROOT / ("bench/results/gap_study/risk_lopo.json" if not args.corpus
+                   else f"bench/results/gap_study/risk_lopo_corpus_{args.variant}.json")
     dest.write_text(json.dumps(out, indent=1, default=float) + "\n")
     return out
 

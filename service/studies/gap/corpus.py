@@ -93,32 +93,36 @@ def oracle_job(job) -> dict:
     return {"prototype": job["prototype"], "group": job["group"], "oracle": o}
 
 
+def _task(task):
+    """One group's oracle or one group of one variant (for the pool)."""
+    kind, job = task
+    return ("oracle", oracle_job(job)) if kind == "oracle" else (kind, diagnose_job((job, kind)))
+
+
 def run(out, *, budget_s: float = 840.0, workers: int = 2, variants=VARIANTS) -> dict:
-    """Diagnose what is not yet on disk, for at most ``budget_s`` [s]; returns the counts done."""
+    """Diagnose what is not yet on disk, for at most ``budget_s`` [s], the groups in a shuffled
+    order and each group's variants and oracle together (a stopped run has sampled every
+    prototype and both variants); returns the counts done."""
     from ..common import pool_map
 
     out = Path(out)
     jobs = json.loads((out / "corpus.json").read_text())["jobs"]
     t0 = time.perf_counter()
+    have = {v: _read(out, f"rows_{v}.jsonl") for v in variants}
     oracle = _read(out, "oracle.jsonl")
-    todo = [j for j in jobs if (j["prototype"], j["group"]) not in oracle]
-    for k in range(0, len(todo), 2 * workers):
+    tasks = []
+    for i in np.random.default_rng(42).permutation(len(jobs)):
+        j = jobs[int(i)]
+        key = (j["prototype"], j["group"])
+        tasks += [("oracle", j)] if key not in oracle else []
+        tasks += [(v, j) for v in variants if key not in have[v]]
+    for k in range(0, len(tasks), workers):
         if time.perf_counter() - t0 > budget_s:
             break
-        with (out / "oracle.jsonl").open("a") as f:
-            for r in pool_map(oracle_job, todo[k:k + 2 * workers], workers):
+        for kind, r in pool_map(_task, tasks[k:k + workers], workers):
+            name = "oracle.jsonl" if kind == "oracle" else f"rows_{kind}.jsonl"
+            with (out / name).open("a") as f:
                 f.write(json.dumps(r, default=float) + "\n")
-    for v in variants:
-        have = _read(out, f"rows_{v}.jsonl")
-        rng = np.random.default_rng(42)
-        todo = [jobs[int(i)] for i in rng.permutation(len(jobs))
-                if (jobs[int(i)]["prototype"], jobs[int(i)]["group"]) not in have]
-        for k in range(0, len(todo), workers):
-            if time.perf_counter() - t0 > budget_s:
-                break
-            with (out / f"rows_{v}.jsonl").open("a") as f:
-                for r in pool_map(diagnose_job, [(j, v) for j in todo[k:k + workers]], workers):
-                    f.write(json.dumps(r, default=float) + "\n")
     return {v: len(_read(out, f"rows_{v}.jsonl")) for v in variants} | {"groups": len(jobs),
                                                                          "oracle": len(_read(out, "oracle.jsonl"))}
 
