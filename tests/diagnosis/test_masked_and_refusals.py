@@ -53,6 +53,18 @@ def test_a_record_with_an_over_range_span_in_its_motion_is_diagnosed_on_what_is_
     assert clean["blocks"] - 12 <= r["blocks"] < clean["blocks"]     # the masked blocks are not evidence
 
 
+def test_the_result_says_how_its_probabilities_were_calibrated(analyser):
+    from service.diagnosis.report import format_report
+
+    b, caps = analyser
+    r = diagnose(caps, b, "open", next_measurements=False)
+    note = r["calibration_note"]
+    assert "docs/gap-diagnosis.md" in note
+    assert ("not calibrated" in note) == (r["calibration"] in (None, "", "identity"))
+    assert "_" not in note.replace("docs/gap-diagnosis.md", "")         # words, no identifiers
+    assert note in format_report(r)
+
+
 def test_a_failure_inside_the_method_names_the_records_and_the_stage(analyser, monkeypatch):
     """Numbers in, a non-number made by the method: the words say the records are numbers and
     which stage failed, not that the records hold non-numbers."""
