@@ -1,6 +1,6 @@
 """Benchmark: `diagnose` on a group of 10 openings of one breaker, wall time on 2 cores.
 
-Issue 36's target: a group of 10 openings takes ≤ 10 s wall on 2 cores (issue 29's was 30 s). Two groups, each of
+Issue 42's target: a group of 10 openings takes ≤ 10 s wall at the median and ≤ 30 s at worst on 2 cores. Two groups, each of
 one unit under conditions drawn per opening (the gap study's generators): a healthy prototype-A
 breaker, and a prototype-B breaker with an orifice buffer at realistic strength (a foreign
 simulator's shape: the fits of the hypotheses work hardest there). One diagnosis at a time,
@@ -18,6 +18,7 @@ import argparse
 import json
 import os
 import platform
+import subprocess
 import time
 from pathlib import Path
 
@@ -30,7 +31,8 @@ from service.diagnosis import diagnose  # noqa: E402
 from service.studies.common import load_reference  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
-TARGET_S = 10.0   # issue 36: a group of 10 openings, wall, on 2 cores
+TARGET_S = 10.0        # issue 42: the median group of 10 openings, wall, on 2 cores
+TARGET_WORST_S = 30.0  # issue 42: the slowest group of 10
 
 
 def group(prototype: str, effects: dict, n: int, seed: int) -> list:
@@ -61,6 +63,7 @@ def main(argv=None) -> dict:
     for proto, label, eff in cases:
         caps = group(proto, eff, args.captures, seed=29)
         load = os.getloadavg()[0]
+        up = subprocess.run(["uptime"], capture_output=True, text=True, check=False).stdout.strip()
         t0, c0 = time.perf_counter(), time.process_time()
         r = diagnose(caps, breaker, "open")
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0
@@ -68,16 +71,21 @@ def main(argv=None) -> dict:
               f"{cpu:6.1f} s CPU (load average {load:.1f} on {os.cpu_count()} cores)  → {r['status']} "
               f"{r['answer']} p={r['answer_probability']:.2f}")
         out["cases"].append({"prototype": proto, "truth": label, "wall_s": wall, "cpu_s": cpu,
-                             "load_average_1min": load, "status": r["status"], "answer": r["answer"],
+                             "load_average_1min": load, "uptime": up, "status": r["status"], "answer": r["answer"],
                              "answer_probability": r["answer_probability"],
                              "stages_s": r.get("stages_s")})
-    out["group10_wall_s"] = max(c["wall_s"] for c in out["cases"])
+    walls = [c["wall_s"] for c in out["cases"]]
+    out["group10_wall_s"] = max(walls)
     out["group10_cpu_s"] = max(c["cpu_s"] for c in out["cases"])
-    out["meets_target"] = out["group10_wall_s"] <= TARGET_S
+    out["median_wall_s"] = float(np.median(walls))
+    out["target_worst_s"] = TARGET_WORST_S
+    out["meets_target"] = out["median_wall_s"] <= TARGET_S and out["group10_wall_s"] <= TARGET_WORST_S
+    out["method"] = ("issue 42: the hypotheses' joint refits by Gauss-Newton with each capture's state eliminated "
+                     "(service/diagnosis/linearised.py), no trust-region refit per hypothesis")
     (ROOT / "bench/results").mkdir(parents=True, exist_ok=True)
     (ROOT / "bench/results/diagnose_speed.json").write_text(json.dumps(out, indent=1) + "\n")
-    print(f"slowest group: {out['group10_wall_s']:.1f} s wall, {out['group10_cpu_s']:.1f} s CPU "
-          f"(target ≤ {TARGET_S:.0f} s wall)")
+    print(f"median group: {out['median_wall_s']:.1f} s wall (target ≤ {TARGET_S:.0f} s); slowest: "
+          f"{out['group10_wall_s']:.1f} s wall, {out['group10_cpu_s']:.1f} s CPU (target ≤ {TARGET_WORST_S:.0f} s)")
     return out
 
 

@@ -23,7 +23,8 @@ from ..mechanics.effects import EFFECT_NAMES
 from .decision import decide
 from .errors import DiagnosisError
 from .evidence import evidence
-from .hypotheses import catalogue_for, fit_reported, holdout
+from .hypotheses import catalogue_for
+from .linearised import fit_reported, holdout_shrink
 from .predictive import score
 from .measurement import next_measurement
 from .report import build
@@ -70,12 +71,11 @@ def diagnose(captures, breaker: Breaker, operation: str, *, effects=None, seed: 
     windows = prepare(list(captures), breaker, operation, fitter=fitter, seed=seed)
     try:
         return _diagnose(windows, catalogue, strengths, next_measurements, t0, time.perf_counter() - t0)
-    except (ArithmeticError, ValueError, np.linalg.LinAlgError):
-        # a numerical failure is the records' (non-finite model values, a fit that did not
-        # converge): said in words naming them, never the library's message
-        names = ", ".join(c.data.source for c in windows.captures)
-        raise DiagnosisError(f"{names}: the joint fit of the hypotheses did not converge on these records "
-                             f"(a model value or a residual is not a number): refused, no diagnosis") from None
+    except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:
+        # a numerical failure: said in words naming the records and what failed where, never
+        # the library's message (issue 42 item 5: the former words blamed the records' numbers
+        # for any failure, though the non-number was made inside the method)
+        raise DiagnosisError(refusal(windows, exc)) from None
 
 
 def _diagnose(windows, catalogue, strengths, next_measurements, t0, t_prepare):
@@ -87,8 +87,44 @@ def _diagnose(windows, catalogue, strengths, next_measurements, t0, t_prepare):
     ev = evidence(fits, scores)
     dec = decide(fits, ev, catalogue, strengths)
     nm = next_measurement(fits, dec.rivals) if (next_measurements and dec.status == "ambiguous") else []
-    ho = holdout(windows, fits.hypotheses[dec.hypothesis]) if dec.status == "named" else None
+    ho = holdout_shrink(windows, fits.hypotheses[dec.hypothesis]) if dec.status == "named" else None
     result = build(fits, ev, dec, nm, ho, time.perf_counter() - t0, scores)
     result["stages_s"] = {"prepare": t_prepare, "evidence": t2 - t1, "report_refit": t3 - t2,
                           "rest": time.perf_counter() - t3}
     return result
+
+
+STAGES = {"predictive": "the evidence (each hypothesis's leave-one-capture-out score)",
+          "linearised": "the joint refit of the hypotheses", "hypotheses": "the joint refit of the hypotheses",
+          "evidence": "the noise model of the report", "discrepancy": "the outside-the-catalogue term",
+          "report": "the report", "measurement": "the next-measurement advice", "decision": "the decision",
+          "windows": "the reduced fit's linearisation"}
+
+
+def refusal(windows, exc) -> str:
+    """The words of a refusal after a numerical failure: per record, what in its own data is not
+    a number (its samples, its reduced fit's residual, its Jacobian), else the stage of the method
+    that failed and how (a singular system, a value that is not a number made by the method)."""
+    import traceback
+
+    bad = []
+    for cw in windows.captures:
+        what = [label for label, v in (("its samples", cw.data.y), ("its reduced fit's state", cw.x),
+                                       ("its noise weights", cw.data.weight), ("its reduced fit's residual", cw.r),
+                                       ("its state Jacobian", cw.J)) if not np.all(np.isfinite(v))]
+        if what:
+            bad.append(f"{cw.data.source}: {', '.join(what)} not a number")
+    if bad:
+        return "; ".join(bad) + ": refused, no diagnosis"
+    stage = "the method"
+    for fr in reversed(traceback.extract_tb(exc.__traceback__)):
+        mod = fr.filename.replace("\\", "/").rsplit("/", 1)[-1].removesuffix(".py")
+        if "/diagnosis/" in fr.filename.replace("\\", "/") and mod in STAGES:
+            stage = STAGES[mod]
+            break
+    how = ("a linear system had no unique solution" if isinstance(exc, np.linalg.LinAlgError)
+           else "a value that is not a number was made inside it" if "nan" in str(exc).lower() or "inf" in str(exc).lower()
+           else "an arithmetic failure" if isinstance(exc, ArithmeticError) else "an invalid intermediate value")
+    names = ", ".join(c.data.source for c in windows.captures)
+    return (f"{names}: the records' samples and reduced fits are numbers, but {stage} failed on them ({how}): "
+            f"refused, no diagnosis; please report it with the records")

@@ -75,16 +75,19 @@ class Discrepancy:
         return int(sum(g.shape[0] for g in self.G))
 
     def ls_residuals(self):
-        """Residuals of the least-squares fit with every coefficient free (for the noise scale)."""
-        out = []
-        for B, v in zip(self.B, self.v):
-            coef = np.linalg.lstsq(B, v, rcond=None)[0]
-            out.append(v - B @ coef)
-        return out
+        """Residuals of the least-squares fit with every coefficient free (for the noise scale),
+        from the pseudo-inverse of G = BᵀB (the "everywhere" component; computed once)."""
+        if getattr(self, "_ls", None) is None:
+            self._ls = [v - B @ self._components(i)[0][3] for i, (B, v) in enumerate(zip(self.B, self.v))]
+        return self._ls
 
     def _components(self, i: int):
         """Capture i's alternatives for where the discrepancy lies: everywhere (all columns) or in
-        one stretch of SEGMENT consecutive columns (every STRIDE): [(columns, K, R, coef)]."""
+        one stretch of SEGMENT consecutive columns (every STRIDE): [(columns, K, R, coef)]
+        (computed once per capture)."""
+        cache = self.__dict__.setdefault("_comp", {})
+        if i in cache:
+            return cache[i]
         G, b = self.G[i], self.b[i]
         K = G.shape[0]
         spans = [np.arange(K)] + [np.arange(a, min(a + SEGMENT, K)) for a in range(0, max(K - SEGMENT, 0) + 1, STRIDE)]
@@ -95,6 +98,7 @@ class Discrepancy:
             keep = w > w.max() * 1e-10 if w.size and w.max() > 0 else np.zeros(w.size, bool)
             c = V[:, keep] @ ((V[:, keep].T @ bs) / w[keep])
             out.append((cols, int(keep.sum()), float(bs @ c), c))
+        cache[i] = out
         return out
 
     @staticmethod

@@ -45,22 +45,20 @@ from dataclasses import dataclass, field
 from itertools import combinations
 
 import numpy as np
-from scipy.interpolate import BSpline
-from scipy.signal import lfilter
 
 from ..mechanics.effects import REFERENCE_STRENGTHS as REALISTIC
 from .hypotheses import family_starts, signature
+from .linearised import exact_fit, member_from_pair
+from .noise import AR_ORDER, NOISE_KNOT_S, _orth, _prewhiten, spline_basis, yule_walker  # noqa: F401 (re-exported)
 from .windows import Windows
 
-AR_ORDER = 8           # the in-motion noise spectrum (vibration modes: two poles each)
-NOISE_KNOT_S = 2.0e-3  # [s] knots of the per-capture spline whose residual is the noise (> ~250 Hz)
 KNOT_S = 2.0e-3        # [s] knots of the shared discrepancy: below ~250 Hz, under the struck modes of the linkage
 UNIT_S = 2.0e-3        # [s] the units of a single capture
 FAMILY_DIM = 3         # a family's subspace: this many directions for every family, so that
                        # the Occam factor never chooses between families, only the data do
 SHAPE_POINTS = 10      # quasi-random shapes per family (Halton, fixed) beside its starts
 PAIR_TOP = 3           # pairs of the best singles
-EXACT_TOP = 3          # effect hypotheses refitted exactly (and scored at their own profile)
+EXACT_TOP = 3          # effect hypotheses refitted jointly (and scored at their own profile)
 REFINE_TOP = 3         # families refitted nonlinearly about their best point
 REFINE_NFEV = 12       # least-squares evaluations of that refit
 SEGMENT = 8            # columns of a local discrepancy (~16 ms), every half of it
@@ -95,41 +93,6 @@ class Scores:
         return float(np.sqrt(d.size * np.var(d, ddof=1))) if d.size > 1 else float("inf")
 
 
-# --- noise: the in-motion AR filter ----------------------------------------------------------
-
-def yule_walker(e: np.ndarray, order: int = AR_ORDER):
-    """AR coefficients a (e_t = Σ a_k e_{t−k} + u_t) and the innovation variance, Yule–Walker."""
-    e = np.asarray(e, float) - float(np.mean(e))
-    n = e.size
-    r = np.array([float(np.dot(e[: n - k], e[k:])) / n for k in range(order + 1)])
-    if r[0] <= 0:
-        return np.zeros(order), 1.0
-    from scipy.linalg import solve_toeplitz
-
-    try:
-        a = solve_toeplitz(r[:order], r[1: order + 1])
-    except np.linalg.LinAlgError:
-        return np.zeros(order), float(r[0])
-    if not np.all(np.abs(np.roots(np.concatenate([[1.0], -a]))) < 1.0):   # keep the filter stable
-        return np.zeros(order), float(r[0])
-    return a, float(max(r[0] - np.dot(a, r[1: order + 1]), 1e-12 * r[0]))
-
-
-def spline_basis(t: np.ndarray, lo: float, hi: float, step: float) -> np.ndarray:
-    """Cubic B-splines on [lo, hi] with knots every ``step``, at ``t`` (clipped)."""
-    interior = np.arange(lo, hi, step)[1:]
-    knots = np.concatenate([[lo] * 4, interior, [hi] * 4])
-    return BSpline.design_matrix(np.clip(t, lo, hi), knots, 3).toarray()
-
-
-def _orth(A: np.ndarray, tol: float = 1e-8) -> np.ndarray:
-    if A.shape[1] == 0:
-        return A
-    nrm = np.maximum(np.linalg.norm(A, axis=0), 1e-300)
-    U, s, _ = np.linalg.svd(A / nrm, full_matrices=False)
-    return U[:, s > s[0] * tol] if s.size and s[0] > 0 else U[:, :0]
-
-
 @dataclass
 class _Cap:
     r: np.ndarray          # projected, pre-whitened residual
@@ -143,37 +106,6 @@ class _Cap:
         """Whitened signatures (n × k) filtered and with the nuisance projected out."""
         X = self.f(np.column_stack(sigs))
         return X - self.Qw @ (self.Qw.T @ X)
-
-
-def _prewhiten(cw, n_drop: int = 0):
-    """The capture's in-motion noise filter: the AR spectrum of what a per-capture spline of
-    ``NOISE_KNOT_S`` knots leaves beside the nuisance (the vibration and the sensor noise above
-    ~250 Hz; the smooth gap is in the spline), floored at the sensor's white level (1, the
-    pre-trigger σ: below the spline's band nothing can be estimated, and no noise is quieter than
-    the sensor's), applied as a zero-phase filter 1/√S(f). Returns (filter, (a, innovation sd))."""
-    t = cw.data.t
-    B = spline_basis(t, float(t[0]), float(t[-1]) + 1e-9, max(NOISE_KNOT_S, 4 * float(np.median(np.diff(t)))))
-    B = B * cw.data.weight[:, None]
-    A = np.column_stack([cw.Q, B])
-    coef = np.linalg.lstsq(A, cw.r, rcond=None)[0]
-    e = cw.r - A @ coef
-    dof = max(e.size - min(A.shape[1], e.size - 1), 1)
-    a, v = yule_walker(e, AR_ORDER)
-    v *= e.size / dof
-    n = cw.r.size
-    nfft = int(2 ** np.ceil(np.log2(2 * n)))
-    w = np.linspace(0.0, np.pi, nfft // 2 + 1)
-    Aw = np.ones_like(w, dtype=complex)
-    for k, ak in enumerate(a, start=1):
-        Aw -= ak * np.exp(-1j * k * w)
-    S = np.maximum(v / np.abs(Aw) ** 2, 1.0)
-    H = 1.0 / np.sqrt(S)
-
-    def f(x):
-        X = np.fft.rfft(np.asarray(x, float), nfft, axis=0)
-        Y = np.fft.irfft(X * (H[:, None] if X.ndim == 2 else H), nfft, axis=0)[:n]
-        return Y[n_drop:]
-    return f, (a.tolist(), float(np.sqrt(v)))
 
 
 def motion_time(cw, breaker, operation):
@@ -290,10 +222,8 @@ def refine_family(windows, caps, effect: str):
     """The family's local subspace about its joint nonlinear fit (shared strength and shape,
     each capture's state profiled, from ``best_point``): the SVD of its signatures at the fitted
     point and at points moved along each parameter. Returns the fit."""
-    from ..mechanics.effects import shape_bounds
     from .hypotheses import fit_hypothesis, strength_bounds
 
-    op, br = windows.operation, windows.breaker
     z0 = best_point(caps, effect)
     lo_s, hi_s = strength_bounds(effect)
     z0[0] = float(np.clip(z0[0], lo_s, hi_s))
@@ -322,39 +252,6 @@ def local_subspace(windows, caps, effect: str, st: float, sh):
         sigs = [np.where(np.abs(x) < 1e3, x, 0.0) for x in sigs]
         c.cols[effect] = c.columns(sigs)
     family_subspace(caps, effect)
-
-
-def exact_fit(windows, effects: tuple, refined: dict):
-    """The exact joint refit (``hypotheses.refine_exact``) of a family or pair, from the local
-    refits of its families."""
-    from .hypotheses import fit_hypothesis, refine_exact
-
-    if len(effects) == 1:
-        h = refined.get(effects[0]) or fit_hypothesis(windows, effects, [best_point_w(windows, effects[0])])
-    else:
-        z0 = []
-        for e in effects:
-            h1 = refined.get(e) or fit_hypothesis(windows, (e,), [best_point_w(windows, e)])
-            z0 += [h1.phi[e][0], *h1.phi[e][1]]
-        h = fit_hypothesis(windows, effects, [np.array(z0, float)], refine_nfev=REFINE_NFEV)
-    h = refine_exact(windows, h)
-    n = windows.n
-    if len(effects) == 1 and h.chi2 > n + 5.0 * np.sqrt(2.0 * n):
-        # the shape objective is multimodal (a contact touch's fraction moves a kink): a single
-        # still above the noise is screened again from every start at the states it found
-        from .hypotheses import family_starts
-
-        hb = fit_hypothesis(windows, effects, family_starts(effects[0]), caps=h.captures)
-        if hb.chi2 < h.chi2:
-            h2 = refine_exact(windows, hb)
-            if h2.chi2 < h.chi2:
-                h = h2
-    return h
-
-
-def best_point_w(windows, effect):
-    from .hypotheses import family_starts
-    return family_starts(effect)[0]
 
 
 def outside(caps, bases, mean_rows, shift=0.0):
@@ -394,9 +291,12 @@ def family_subspace(caps, name: str):
             c.cols[name] = c.cols[name][:, :0]
         return
     Sn = S[:, keep] / nrm[keep]
-    _, s, Vt = np.linalg.svd(Sn, full_matrices=False)
-    d = int(min(FAMILY_DIM, np.sum(s >= 1e-6 * s[0])))
-    V = Vt[:d].T / s[:d]
+    # the right singular vectors and values from the (small) Gram matrix: same subspace, k × k work
+    lam, W = np.linalg.eigh(Sn.T @ Sn)
+    order = np.argsort(lam)[::-1]
+    s = np.sqrt(np.maximum(lam[order], 0.0))
+    d = int(min(FAMILY_DIM, np.sum(s >= 1e-6 * s[0]))) if s.size and s[0] > 0 else 0
+    V = W[:, order[:d]] / s[:d]
     for c in caps:
         c.cols[name] = (np.nan_to_num(c.cols[name][:, keep]) / nrm[keep]) @ V
 
@@ -546,14 +446,10 @@ def score(windows: Windows, catalogue) -> Scores:
         if len(hyps[k]) == 1:
             # a pair must not win on convergence alone: the member is also refitted alone from the
             # pair's states and parameters, and the better fit kept
-            from .hypotheses import fit_hypothesis, refine_exact
-
             e = hyps[k][0]
             for pk, ph in list(exact.items()):
                 if e in hyps[pk] and len(hyps[pk]) == 2:
-                    z = np.concatenate([[ph.phi[e][0]], ph.phi[e][1]])
-                    alt = refine_exact(windows, fit_hypothesis(windows, (e,), [z], caps=ph.captures,
-                                                               refine_nfev=REFINE_NFEV))
+                    alt = member_from_pair(windows, e, ph)
                     if alt.chi2 < h.chi2:
                         h = alt
         exact[k] = h

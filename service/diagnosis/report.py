@@ -210,7 +210,18 @@ def build(fits: Fits, ev: Evidence, dec: Decision, next_meas: list, holdout, run
         "left_out": list(getattr(w, "left_out", []) or []),
     }
     result["message"] = message(result)
+    result["calibration_note"] = calibration_note(dec.calibration)
     return result
+
+
+def calibration_note(calibration: str) -> str:
+    """One line: how the stated probabilities were calibrated and on what."""
+    if calibration in (None, "", "identity"):
+        return ("Probabilities: the evidence's own (each hypothesis scored on captures it was not fitted on), "
+                "not calibrated: on the simulated prototypes the leave-one-prototype-out check could not "
+                "certify a calibrated answer set; see docs/gap-diagnosis.md.")
+    return (f"Probabilities: calibrated by the {calibration} map fitted on the simulated prototypes' study, "
+            f"leaving each prototype out to check it; see docs/gap-diagnosis.md.")
 
 
 ONE_CAPTURE = " One capture cannot decide between close rivals: its units of evidence are ~2 ms stretches of it."
@@ -292,6 +303,8 @@ def format_report(result: dict) -> str:
     for nm in result["next_measurement"][:3]:
         lines.append(f"next: {nm['measurement']} (expected ΔBIC {nm['expected_delta_bic']:.0f}, "
                      f"{' vs '.join(nm['separates'])})")
+    if result.get("calibration_note"):
+        lines.append(result["calibration_note"])
     lines.append(f"runtime {result['runtime_s']:.1f} s")
     return "\n".join(lines)
 

@@ -13,6 +13,7 @@ over captures and blocks).
 
 from __future__ import annotations
 
+import dataclasses
 import re
 from dataclasses import dataclass, field
 
@@ -26,7 +27,15 @@ from drivers.capture import CaptureError
 from ..estimation import FitError
 from ..mechanics.breaker import Breaker
 from ..mechanics.coordinates import operation_coordinate
-from .data import BLOCK_S, STATE, WindowData, design_state, model_curve, state_bounds, window_data
+from .data import (
+    BLOCK_S,
+    STATE,
+    WindowData,
+    design_state,
+    model_curve,
+    state_bounds,
+    window_data,
+)
 from .errors import DiagnosisError
 
 BASE_NFEV = 30      # polish of the reduced model (least_squares evaluations)
@@ -161,13 +170,25 @@ def valid_samples(cap):
     needs a uniform series), and the mask of the valid ones; the diagnosis's evidence later uses
     only blocks made of valid samples (``data.window_data``). Refused in words when too few are
     valid."""
-    import dataclasses
-
     y = np.asarray(cap.travel, float)
     valid = np.isfinite(y)
     mask = getattr(cap, "mask", None)          # an over-range mask from the reader, when it has one
     if mask is not None and np.shape(mask) == y.shape:
         valid &= ~np.asarray(mask, bool)
+    # an analyser's over-range spans (``meta['masked']``, carried filled by the reader): not
+    # measured, so left out of the evidence; the reduced fit runs on the bridged record (the
+    # estimator would refuse a window holding them: here they are named and diagnosed around)
+    meta = dict(getattr(cap, "meta", None) or {})
+    channel = meta.get("travel_channel", "travel")
+    spans = meta.get("masked") or []
+    ours = [m for m in spans if m.get("channel", channel) == channel]
+    for m in ours:
+        a, b = int(m.get("first_index", 0)), int(m.get("last_index", -1))
+        valid[max(a, 0): max(b + 1, 0)] = False
+    if ours:
+        meta["masked"] = [m for m in spans if m not in ours]
+        meta["masked_for_diagnosis"] = ours
+        cap = dataclasses.replace(cap, meta=meta)
     if valid.all():
         return cap, valid
     name = cap.source or "capture"
@@ -184,7 +205,6 @@ def with_estimated_structure(breaker: Breaker, fits) -> Breaker:
     """``breaker`` with the α0 [rad] and CO [s⁻¹] its fits estimated (an ``[unknown_design]``:
     the median over the captures), so the diagnosis models the curve the fit found; unchanged
     when the design is known."""
-    import dataclasses
 
     values = {name: [f.structure[name]["value"] for f in fits if name in (getattr(f, "structure", None) or {})]
               for name in ("alpha0", "CO")}

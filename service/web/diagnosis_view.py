@@ -147,6 +147,8 @@ def view(r: dict | None) -> dict | None:
     where = _where(r)
     messages = [str(r["message"])] if r.get("message") else []
     messages += [str(w) for w in r.get("warnings") or [] if isinstance(w, str)]
+    if r.get("calibration_note"):
+        messages.append(str(r["calibration_note"]))
     for a in absorbed:
         a["bias_text"] = [f"{k} {percent(x)}" for k, x in a["bias"].items() if x is not None]
     names = {n for n, _ in probabilities} | {x["effect"] for x in rivals} | {a["effect"] for a in absorbed}

@@ -119,15 +119,20 @@ def test_a_span_outside_the_window_does_no_harm():
     assert abs(r.parameters["BO"] - truth["params"]["BO"]) < 4 * r.stderr["BO"]
 
 
-def test_a_diagnosis_of_such_a_record_says_why_in_words():
+def test_a_diagnosis_of_such_a_record_uses_what_is_valid():
+    """Issue 42 item 5: a record valid but for its over-range span is diagnosed on what is valid
+    (the masked samples are left out of the evidence), no longer refused."""
     from service.diagnosis import diagnose
-    from service.diagnosis.errors import DiagnosisError
 
     text, _ = _text()
     cap, b = _capture(text, travel="T1")
     opening = operation_capture(cap, b, "open")[0]
-    with pytest.raises(DiagnosisError, match="travel T1 is over-range .* fit another phase"):
-        diagnose([opening], b, "open")
+    r = diagnose([opening], b, "open", next_measurements=False)
+    rest, _ = _text(span=(200.0, 202.9))                 # the same record, over-range while at rest
+    cap2, _ = _capture(rest, travel="T1")
+    clean = diagnose([operation_capture(cap2, b, "open")[0]], b, "open", next_measurements=False)
+    assert r["status"] in {"none", "named", "ambiguous", "unexplained"}
+    assert r["blocks"] < clean["blocks"]                 # the masked samples are not evidence
 
 
 def test_a_channel_over_range_throughout_is_refused_in_words():
