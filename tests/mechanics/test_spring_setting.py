@@ -51,7 +51,7 @@ def test_a_stiffer_spring_reads_as_more_steps_and_the_commissioning_pair_removes
     assert "commissioning pair" in got["basis"]
     alone = setting(dict(r, sd_steps=0.01), breaker)
     assert alone["kO_sd_steps"] == pytest.approx(0.03 / np.sqrt(3) * steps_per_kO(breaker))
-    assert alone["ci95"][0] < 3.0 < alone["ci95"][1] and "not read" in alone["basis"]
+    assert alone["ci95"][0] < 3.0 < alone["ci95"][1] and "not known" in alone["basis"]
 
 
 def test_the_stated_sd_holds_in_a_simulation(breaker):

@@ -281,7 +281,7 @@ def test_a_shelved_alarm_leaves_the_fleet_status_scada_and_iec61850_until_it_uns
     assert do["shelved_by"] == "test-operator" and do["shelved_until"] is not None  # the point says so
     _web_sign_in(env, "reader")
     fleet = env.client.get("/").text
-    assert "DO alarm shelved until" in fleet or "DO warning shelved until" in fleet
+    assert "buffer damping (DO) alarm shelved until" in fleet or "buffer damping (DO) warning shelved until" in fleet
     assert '<span class="muted">none</span>' not in fleet  # not "no alarm" while one is shelved
     assert "by test-operator" in fleet  # the page says until when and by whom
     page = env.client.get("/breakers/1").text

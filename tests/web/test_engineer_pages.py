@@ -259,3 +259,8 @@ def test_the_history_diagnosis_reads_in_words(demo, browser):
         text = card.inner_text()
         assert not word_problems(text), "\n".join(word_problems(text))
         assert not axis_problems(page)
+        # a name is only ever one of the effects the demo injects (issue 42: the demo never misleads)
+        status = page.locator("#bdiag-status").get_attribute("data-status")
+        if status == "named":
+            named = page.locator("#bdiag-effects").inner_text()
+            assert any(w in named for w in DEMO_EFFECT_WORDS), named
