@@ -5,10 +5,14 @@ against its ``[limits]`` maintenance limit. Pure: numbers in, rows out.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
-from service.breaker_limits import CHARACTERISTIC_UNITS, CharacteristicLimit, ParameterLimit
+from service.breaker_limits import (
+    CHARACTERISTIC_UNITS,
+    CharacteristicLimit,
+    ParameterLimit,
+)
+from service.display import finite as _finite
 
 # How a characteristic is shown: label, display unit, factor from its SI unit.
 CHARACTERISTIC_DISPLAY = {"operating_time_s": ("operating time", "ms", 1e3),
@@ -46,12 +50,6 @@ class Verdict:
         return "—"
 
 
-def _finite(v) -> float | None:
-    try:
-        f = float(v)
-    except (TypeError, ValueError):
-        return None
-    return f if math.isfinite(f) else None
 
 
 def _judge(value: float | None, low: float | None, high: float | None) -> str:

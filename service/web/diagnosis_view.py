@@ -7,20 +7,13 @@ and the earlier one (``verdict``, ``gap.phases``, ``how_far``) are understood.
 
 from __future__ import annotations
 
-import math
-
 from service.diagnosis.report import percent
+from service.display import finite as _num
 from service.mechanics.effects import in_words
 
 BAR_W = 250.0  # px of the longest bar in the "where" chart
 
 
-def _num(v) -> float | None:
-    try:
-        f = float(v)
-    except (TypeError, ValueError):
-        return None
-    return f if math.isfinite(f) else None
 
 
 def _where(r: dict) -> list[dict]:
