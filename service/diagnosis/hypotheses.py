@@ -231,9 +231,15 @@ def refine_exact(windows: Windows, h: HypothesisFit, *, max_nfev: int = EXACT_NF
         if res1.cost < res.cost:
             res = res1
     eff = _unpack(res.x[:ke], effects, sl)
+    return refit_if_better(h, effects, eff, [res.x[ke + i * p: ke + (i + 1) * p] for i in range(len(caps))],
+                           caps, br, op)
+
+
+def refit_if_better(h, effects, eff, states, caps, br, op):
+    """The hypothesis relinearised at its refitted capture ``states`` with the effects ``eff``, or
+    ``h`` itself when the refit does not lower its χ² (a refit never makes a hypothesis worse)."""
     new_caps, sigs, per = [], [], []
-    for i, cw in enumerate(caps):
-        x = res.x[ke + i * p: ke + (i + 1) * p]
+    for cw, x in zip(caps, states):
         nc = linearise(x, cw.data, br, op)
         sg = signature(nc, op, br, eff)
         new_caps.append(nc)

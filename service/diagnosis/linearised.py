@@ -36,9 +36,9 @@ from .hypotheses import (
     none_fit,
     outside_fit,
     refine_exact,
+    refit_if_better,
     signature,
 )
-from .windows import linearise
 
 FD_REL = 1e-3     # finite-difference step of an effect parameter, relative to its scale
 LM_LAMBDA = 1e-3  # initial Levenberg–Marquardt damping (relative to the diagonal)
@@ -183,17 +183,7 @@ def refit(windows, h, *, iters: int = 3, design_restart: bool = False):
             z, xs = z1, xs1
     _, _, _, sl = _layout(h.effects)
     eff = _unpack(z, h.effects, sl)
-    new_caps, sigs, per = [], [], []
-    for cw, x in zip(h.captures, xs):
-        nc = linearise(x, cw.data, br, op)
-        sg = signature(nc, op, br, eff)
-        new_caps.append(nc)
-        sigs.append(sg)
-        per.append(float(np.sum(nc.project_out(nc.r - sg) ** 2)))
-    if sum(per) >= h.chi2:
-        return h
-    phi = {e: (st, np.array(sh, float)) for e, st, sh in eff}
-    return HypothesisFit(h.effects, phi, h.k, float(sum(per)), per, sigs, captures=new_caps)
+    return refit_if_better(h, h.effects, eff, xs, h.captures, br, op)
 
 
 def holdout_shrink(windows, h):
