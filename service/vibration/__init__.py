@@ -1,0 +1,8 @@
+"""The vibration channel read: each operation's key moments and the trip latch's time (events),
+the breaker's own healthy fingerprint and each operation's shift from it (fingerprint), and the
+coil currents of analyser records (coils). See docs/vibration.md.
+"""
+
+from .events import FALSE_DETECTION_RATE, VibrationError, VibrationEvents, detect_events
+
+__all__ = ["FALSE_DETECTION_RATE", "VibrationError", "VibrationEvents", "detect_events"]
