@@ -3,6 +3,8 @@ the breaker's own healthy fingerprint and each operation's shift from it (finger
 coil currents of analyser records (coils). See docs/vibration.md.
 """
 
+from .characteristics import unread, vibration_characteristics
 from .events import FALSE_DETECTION_RATE, VibrationError, VibrationEvents, detect_events
 
-__all__ = ["FALSE_DETECTION_RATE", "VibrationError", "VibrationEvents", "detect_events"]
+__all__ = ["FALSE_DETECTION_RATE", "VibrationError", "VibrationEvents", "detect_events", "unread",
+           "vibration_characteristics"]
