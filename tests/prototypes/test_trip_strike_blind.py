@@ -20,10 +20,11 @@ def test_nothing_before_the_strike_and_the_strike_at_its_time():
     np.testing.assert_array_equal(v[before], v0[before])
     assert truth.t_strike == pytest.approx(0.052)
     assert truth.latch_time == pytest.approx(8e-3)
-    # The strike's ring reaches its peak within a millisecond of the strike.
+    # The strike's ring peaks within a millisecond of the strike; the latch's rubbing (2 % of the
+    # strike rms by default) rides on it, so the sum is the peak within a few rub sds.
     added = np.abs(v - v0)
     first_ms = (t >= truth.t_strike) & (t < truth.t_strike + 1e-3)
-    assert added[first_ms].max() == pytest.approx(40.0, rel=1e-6)
+    assert added[first_ms].max() == pytest.approx(40.0, abs=4 * 0.02 * 40.0)
     assert truth.strike_peak_g == pytest.approx(40.0, rel=1e-6)
     # The release rings later, weaker.
     near_release = (t >= truth.t_release) & (t < truth.t_release + 0.3e-3)
