@@ -93,11 +93,14 @@ _SKIPPED: dict[str, Counter] = defaultdict(Counter)
 
 def pytest_collection_modifyitems(items):
     for item in items:
-        _ITEM_LANES[item.nodeid] = _lanes_of(item)
+        _ITEM_LANES[item.nodeid] = lanes = _lanes_of(item)
+        # Under pytest-xdist the workers collect and the controller reports: the lanes travel
+        # with each report as a user property.
+        item.user_properties.append(("lanes", lanes))
 
 
 def pytest_runtest_logreport(report):
-    lanes = _ITEM_LANES.get(report.nodeid, [])
+    lanes = _ITEM_LANES.get(report.nodeid) or dict(report.user_properties).get("lanes") or []
     if hasattr(report, "wasxfail"):  # an expected failure ran: pytest reports it as skipped
         if report.when == "call":
             for lane in lanes or ["core (SQLite, in-process)"]:
@@ -114,7 +117,7 @@ def pytest_runtest_logreport(report):
 
 def pytest_terminal_summary(terminalreporter):
     """One summary at the end of the run: each lane with the tests it ran, and what skipped, why."""
-    if not _ITEM_LANES:
+    if not (_RAN or _SKIPPED):
         return
     w = terminalreporter
     w.section("lanes")

@@ -291,7 +291,9 @@ async def upload_capture(breaker_id: BreakerId, request: Request, response: Resp
                              description="ambient or mechanism temperature of the operation [C] "
                                          "(docs/alarms.md); else the capture's temperature channel, "
                                          "else the latest SCADA value")] = None,
-                         idempotency_key: Annotated[str | None, Header(
+                         # no `| None` either: a header cannot be null, only left out (a nullable
+                         # schema makes clients send "null", which the pattern refuses)
+                         idempotency_key: Annotated[str, Header(
                              alias="Idempotency-Key", pattern=r"^[0-9a-f]{64}$",
                              description="the capture's content hash (SHA-256 of the hex SHA-256 of the .cfg "
                                          "then the .dat): a retry answers with the stored operation")] = None):
