@@ -5,6 +5,7 @@ coil currents of analyser records (coils). See docs/vibration.md.
 
 from .characteristics import unread, vibration_characteristics
 from .events import FALSE_DETECTION_RATE, VibrationError, VibrationEvents, detect_events
+from .fingerprint import Fingerprint, envelope
 
-__all__ = ["FALSE_DETECTION_RATE", "VibrationError", "VibrationEvents", "detect_events", "unread",
+__all__ = ["FALSE_DETECTION_RATE", "Fingerprint", "envelope", "VibrationError", "VibrationEvents", "detect_events", "unread",
            "vibration_characteristics"]

@@ -5,11 +5,12 @@ from __future__ import annotations
 import numpy as np
 
 from .events import VibrationError, detect_events
+from .fingerprint import envelope
 
 
 def vibration_characteristics(capture, operation: str, t_motion_s: float, t_end_s: float | None = None) -> dict:
-    """``latch_time_s`` [s] (None with ``latch_time_reason`` in words), ``vibration_events`` and the
-    detection's noise and threshold for one operation of ``capture`` (a ``drivers.capture.Capture``).
+    """``latch_time_s`` [s] (None with ``latch_time_reason`` in words), ``vibration_events``, the
+    detection's noise and threshold, and ``vibration_envelope`` (the fingerprint's grid) for one operation of ``capture`` (a ``drivers.capture.Capture``).
 
     ``t_motion_s`` is the start of shaft motion from the travel fit (window start + onset delay)
     [s from the capture's first sample]; ``t_end_s`` the travel's end [s].
@@ -24,8 +25,11 @@ def vibration_characteristics(capture, operation: str, t_motion_s: float, t_end_
     if vib is not None and np.asarray(vib).size != np.asarray(capture.travel).size:
         raise VibrationError(f"{capture.source or 'capture'}: the vibration channel has {np.asarray(vib).size} "
                              f"samples but the travel {np.asarray(capture.travel).size}: they are not one recording")
-    return detect_events(vib, capture.sample_rate, t_motion_s, operation, t_end_s=t_end_s,
-                         limits=capture.vibration_limits, source=capture.source or "capture").to_characteristics()
+    out = detect_events(vib, capture.sample_rate, t_motion_s, operation, t_end_s=t_end_s,
+                        limits=capture.vibration_limits, source=capture.source or "capture").to_characteristics()
+    if out.get("vibration_events"):
+        out["vibration_envelope"] = envelope(vib, capture.sample_rate, t_motion_s)
+    return out
 
 
 def unread(reason: str) -> dict:

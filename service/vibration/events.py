@@ -39,12 +39,17 @@ STE_WINDOW_S = 0.25e-3
 """Short-time energy window [s]: longer than half a period of the mechanism's ringing (1.5–3 kHz
 in the samples and prototypes) so the energy does not flicker within one cycle, short enough to
 keep the onset's search to a quarter millisecond before the AIC refinement."""
-FALSE_DETECTION_RATE = 1e-3
-"""Designed probability that a quiet capture (noise only) shows a first shock [per capture]."""
+FALSE_DETECTION_RATE = 1e-4
+"""Designed probability that a quiet capture (noise only) shows a first shock [per capture]: a
+false first shock is a wrong latch time, so it is made rarer than a missed weak strike (None)."""
 HINT_RATE = 0.05
-"""Before the first clear shock, energy above the threshold of this (looser) false-detection rate
-is a possible weaker strike: the latch time is then not read rather than read from a later shock.
-The price: about this fraction of quiet-before-the-shock captures give no latch time."""
+"""When the first clear shock could be the latch release (within ``HINT_NEAR_S`` of the motion),
+energy before it above the threshold of this looser false-detection rate is a possible weaker
+strike: the latch time is then not read rather than read from the release. The price: about this
+fraction of release-only captures give no latch time."""
+HINT_NEAR_S = 1.0e-3
+"""A first shock this close before the motion may be the release [s] (the samples' 0.4 ms,
+prototype B's 0.3–0.5 ms): a strike is further ahead of a healthy latch's motion (1–3 ms)."""
 MAX_LATCH_S = 12e-3
 """Longest trip-latch time searched before the motion [s]: a healthy spring mechanism's latch
 takes 1–3 ms; a sticking latch several ms more. Shocks earlier than this are not this operation's."""
@@ -288,7 +293,8 @@ def detect_events(vibration, sample_rate: float, t_motion_s: float, operation: s
     onsets = _onsets(x, E, threshold, n, i_first, i_stop)
     hint = energy_threshold(sigma, k, n, span / n * WINDOW_OVERLAP, HINT_RATE, ref_dof=ref_dof)
     before = E[search0 + n: max(onsets[0] - n, search0 + n)]
-    if onsets[0] < i_motion and before.size and np.max(before) > hint:
+    near = i_motion - HINT_NEAR_S * fs <= onsets[0] < i_motion
+    if near and before.size and np.max(before) > hint:
         i_hint = search0 + n + int(np.argmax(before > hint))
         return VibrationEvents(None, f"a possible trip strike {(i_motion - i_hint) / fs * 1e3:.2f} ms before the motion, "
                                f"too weak to time (below the {thr_g:.2f} g threshold), before the first clear shock "

@@ -14,6 +14,7 @@ import pytest
 from drivers.synthetic import synthesize_capture
 from service.estimation.fit import fit_capture
 from service.prototypes.a.trip_strike import add_trip_strike
+from service.vibration import FALSE_DETECTION_RATE
 
 
 @pytest.fixture(scope="module")
@@ -51,4 +52,4 @@ def test_fit_json_carries_the_latch_time(samples_dir):
     assert proc.returncode == 0, proc.stderr
     ch = json.loads(proc.stdout)["characteristics"]
     assert ch["latch_time_s"] == pytest.approx(0.4e-3, abs=0.05e-3)
-    assert ch["vibration"]["false_detection_rate"] == pytest.approx(1e-3)
+    assert ch["vibration"]["false_detection_rate"] == pytest.approx(FALSE_DETECTION_RATE)
