@@ -3,9 +3,10 @@ the breaker's own healthy fingerprint and each operation's shift from it (finger
 coil currents of analyser records (coils). See docs/vibration.md.
 """
 
+from .coils import coil_results, record_coils
 from .characteristics import unread, vibration_characteristics
 from .events import FALSE_DETECTION_RATE, VibrationError, VibrationEvents, detect_events
 from .fingerprint import Fingerprint, envelope
 
-__all__ = ["FALSE_DETECTION_RATE", "Fingerprint", "envelope", "VibrationError", "VibrationEvents", "detect_events", "unread",
+__all__ = ["FALSE_DETECTION_RATE", "coil_results", "record_coils", "Fingerprint", "envelope", "VibrationError", "VibrationEvents", "detect_events", "unread",
            "vibration_characteristics"]

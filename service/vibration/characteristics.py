@@ -4,13 +4,15 @@ from __future__ import annotations
 
 import numpy as np
 
+from .coils import record_coils
 from .events import VibrationError, detect_events
 from .fingerprint import envelope
 
 
 def vibration_characteristics(capture, operation: str, t_motion_s: float, t_end_s: float | None = None) -> dict:
     """``latch_time_s`` [s] (None with ``latch_time_reason`` in words), ``vibration_events``, the
-    detection's noise and threshold, and ``vibration_envelope`` (the fingerprint's grid) for one operation of ``capture`` (a ``drivers.capture.Capture``).
+    detection's noise and threshold, ``vibration_envelope`` (the fingerprint's grid) and, for a record
+    with coil currents, ``coils`` (service.vibration.coils) for one operation of ``capture`` (a ``drivers.capture.Capture``).
 
     ``t_motion_s`` is the start of shaft motion from the travel fit (window start + onset delay)
     [s from the capture's first sample]; ``t_end_s`` the travel's end [s].
@@ -29,6 +31,9 @@ def vibration_characteristics(capture, operation: str, t_motion_s: float, t_end_
                         limits=capture.vibration_limits, source=capture.source or "capture").to_characteristics()
     if out.get("vibration_events"):
         out["vibration_envelope"] = envelope(vib, capture.sample_rate, t_motion_s)
+    coils = record_coils(capture) if getattr(capture, "aux", ()) else []
+    if coils:
+        out["coils"] = coils
     return out
 
 
