@@ -43,8 +43,13 @@ def _history(session, breaker: BreakerRow, parameter: str):
     the tail of what the detector was fed."""
     from service.alarms import FitObservation
 
-    rows = crud.good_parameter_history(session, breaker_id=breaker.id, name=parameter,
-                                       since=breaker.baseline_reset_at, last=HISTORY_FITS)
+    if parameter == "latch_time_s":  # the vibration's latch time: in the characteristics, not fitted
+        from service.storage.crud_vibration import latch_history
+
+        rows = latch_history(session, breaker_id=breaker.id, since=breaker.baseline_reset_at)[-HISTORY_FITS:]
+    else:
+        rows = crud.good_parameter_history(session, breaker_id=breaker.id, name=parameter,
+                                           since=breaker.baseline_reset_at, last=HISTORY_FITS)
     temps = operation_temperatures(session, {r.operation_id for r in rows})
     return [FitObservation(operation_id=r.operation_id, time=r.occurred_at, value=r.value,
                            ci95=(r.ci_low, r.ci_high) if r.ci_low is not None and r.ci_high is not None else None,
