@@ -293,6 +293,9 @@ def render(c: ReportContent) -> bytes:
         op = c.latest[kind]
         if op is not None and op.curve is None and op.curve_note:
             pdf.para(f"Latest {'opening' if kind == 'open' else 'closing'}: no curve, {op.curve_note}.", size=7.5)
+    from .vibration_section import vibration_section  # the trip latch and the coil currents (issue 49)
+
+    vibration_section(pdf, c)
     if c.trends:
         pdf.figure(figures.trends_png(c.trends), heading="Fitted parameters over time", caption=
                    "Each fitted parameter with its 95 % interval (band), the drift detector's baseline (dashed) and "

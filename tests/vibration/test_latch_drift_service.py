@@ -94,3 +94,38 @@ def test_a_missed_strike_is_not_fed_to_the_detector(session_maker):
     with session_maker() as s:
         values = [r.value for r in latch_history(s, breaker_id=1)]
     assert len(values) == 5 and min(values) == pytest.approx(1.2e-3)
+
+
+def test_the_condition_report_has_the_latch_and_coil_section(session_maker, tmp_path):
+    import shutil
+    import subprocess
+
+    if shutil.which("pdftotext") is None:
+        pytest.skip("report lane off: poppler-utils (pdftotext) not installed")
+    from service.reports.content import gather
+    from service.reports.pdf import report_pdf
+
+    events = [{"name": "first_shock", "t_s": -1.234e-3, "peak_g": 30.0, "clipped": False},
+              {"name": "latch_release", "t_s": -0.4e-3, "peak_g": 400.0, "clipped": False}]
+    for i in range(3):
+        _store(session_maker, i, 1.234e-3, events)
+    with session_maker() as s, s.begin():  # the latest opening: a record with a trip coil, no vibration
+        op, _ = crud.create_operation(s, capture_key="coil", breaker_id=1, kind="open", occurred_at=T0 + timedelta(days=1),
+                                      source="upload", capture_path="/nonexistent.csv", capture_sha256="1" * 64,
+                                      flags=[], sample_rate=1.0, n_samples=1)
+        crud.claim_fit(s, operation_id=op.id, worker="test")
+        crud.store_fit_result(s, operation_id=op.id, curve=None, result={
+            "parameters": {"AO": 3424.0, "BO": 4806.0, "DO": 39.5, "EO": 3950.0}, "identifiable": True,
+            "characteristics": {"latch_time_s": None, "latch_time_reason": "no vibration channel in the capture",
+                                "vibration_events": [],
+                                "coils": [{"channel": "C4", "pulse": 0, "energised_s": 0.3, "peak_current_a": 1.433,
+                                           "armature_dip_s": 0.012, "current_end_s": 0.0257,
+                                           "analyser_peak_a": 1.42, "peak_difference_rel": 0.009}]}})
+    with session_maker() as s:
+        content = gather(s, breaker=crud.get_breaker(s, breaker_id=1), settings=SETTINGS)
+    out = tmp_path / "r.pdf"
+    report_pdf(content, out)
+    text = subprocess.run(["pdftotext", "-raw", str(out), "-"], capture_output=True, text=True).stdout
+    assert "Trip latch and coil currents" in text
+    assert "no latch time: no vibration channel in the capture" in text
+    assert "C4 1.433 1.420 (+0.9%) 12.0 25.7" in text
