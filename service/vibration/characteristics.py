@@ -27,8 +27,12 @@ def vibration_characteristics(capture, operation: str, t_motion_s: float, t_end_
     if vib is not None and np.asarray(vib).size != np.asarray(capture.travel).size:
         raise VibrationError(f"{capture.source or 'capture'}: the vibration channel has {np.asarray(vib).size} "
                              f"samples but the travel {np.asarray(capture.travel).size}: they are not one recording")
-    out = detect_events(vib, capture.sample_rate, t_motion_s, operation, t_end_s=t_end_s,
-                        limits=capture.vibration_limits, source=capture.source or "capture").to_characteristics()
+    dropped = (getattr(capture, "meta", None) or {}).get("vibration_unread")
+    if vib is None and dropped:  # the reader left a broken channel out (drivers.capture_file.check_finite)
+        out = unread(str(dropped))
+    else:
+        out = detect_events(vib, capture.sample_rate, t_motion_s, operation, t_end_s=t_end_s,
+                            limits=capture.vibration_limits, source=capture.source or "capture").to_characteristics()
     if out.get("vibration_events"):
         out["vibration_envelope"] = envelope(vib, capture.sample_rate, t_motion_s)
     coils = record_coils(capture) if getattr(capture, "aux", ()) else []

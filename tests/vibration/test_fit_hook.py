@@ -53,3 +53,17 @@ def test_fit_json_carries_the_latch_time(samples_dir):
     ch = json.loads(proc.stdout)["characteristics"]
     assert ch["latch_time_s"] == pytest.approx(0.4e-3, abs=0.05e-3)
     assert ch["vibration"]["false_detection_rate"] == pytest.approx(FALSE_DETECTION_RATE)
+
+
+def test_a_nan_vibration_in_a_file_is_left_out_not_refused(breaker, opening):
+    from drivers.capture_file import parse_csv
+
+    cap, truth = opening
+    vib = cap.vibration.copy()
+    vib[500:520] = np.nan
+    rows = "\n".join(f"{t:.9f},{y:.7f},{v:.4f}" for t, y, v in zip(cap.t, cap.travel, vib))
+    read = parse_csv("t_s,travel_rad,vibration_g\n" + rows + "\n", source="site/op.csv")
+    assert read.vibration is None and "NaN" in read.meta["vibration_unread"]
+    r = fit_capture(read, breaker, "open")
+    assert r.characteristics["latch_time_s"] is None
+    assert "20 NaN or infinite samples" in r.characteristics["latch_time_reason"]
