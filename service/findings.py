@@ -15,7 +15,11 @@ CAUSES = {("DO", "falling"): "buffer oil leak",
           ("BO", "falling"): "opening spring relaxation or more resistance",
           ("BO", "rising"): "less resistance or a spring pre-compression change",
           ("latch_time_s", "rising"): "the trip latch is slow (dried or dirty grease, corrosion)",
-          ("latch_time_s", "falling"): "a faster trip latch (after lubrication, or a weaker latch spring)"}
+          ("latch_time_s", "falling"): "a faster trip latch (after lubrication, or a weaker latch spring)",
+          ("buffer_ratio", "rising"): "the buffer's shock comes later than the travel explains (a worn or loose "
+                                      "buffer mount, or the accelerometer moved)",
+          ("buffer_ratio", "falling"): "the buffer's shock comes earlier than the travel explains (a worn or loose "
+                                       "buffer mount, or the accelerometer moved)"}
 # parameter -> what the maintenance planner should do once it nears or passes its limit
 ACTIONS = {"DO": "Service the buffer (oil level and seals).",
            "BO": "Service the opening spring and its latch.",
@@ -24,7 +28,8 @@ ACTIONS = {"DO": "Service the buffer (oil level and seals).",
            "AC": "Service the closing spring.",
            "CC": "Service the closing drive (lubrication, latch).",
            "BC": "Inspect the linkage.",
-           "latch_time_s": "The trip latch is slow: lubricate or clean the latch."}
+           "latch_time_s": "The trip latch is slow: lubricate or clean the latch.",
+           "buffer_ratio": "Inspect the buffer's mounting and the accelerometer's."}
 
 
 def likely_cause(parameter: str, direction: str) -> str:

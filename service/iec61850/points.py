@@ -33,7 +33,7 @@ PARAMETER_MEANING = {  # (meaning, unit): the units from the nomenclature, in AS
 
 # Watched names that are not fitted parameters, as data-object names (IEC 61850-7-1: letters and
 # digits, short): the vibration's trip-latch time (service.vibration).
-DO_NAMES = {"latch_time_s": "LatTm"}
+DO_NAMES = {"latch_time_s": "LatTm", "buffer_ratio": "BufRt"}
 PARAMETER_OF = {v: k for k, v in DO_NAMES.items()}
 
 # Data attributes of each common data class as hvcb serves them: (name, FC, type).

@@ -43,10 +43,11 @@ def _history(session, breaker: BreakerRow, parameter: str):
     the tail of what the detector was fed."""
     from service.alarms import FitObservation
 
-    if parameter == "latch_time_s":  # the vibration's latch time: in the characteristics, not fitted
-        from service.storage.crud_vibration import latch_history
+    from service.storage.crud_vibration import WATCHABLE, characteristic_history
 
-        rows = latch_history(session, breaker_id=breaker.id, since=breaker.baseline_reset_at)[-HISTORY_FITS:]
+    if parameter in WATCHABLE:  # the vibration's latch time, buffer ratio: in the characteristics, not fitted
+        rows = characteristic_history(session, breaker_id=breaker.id, name=parameter,
+                                      since=breaker.baseline_reset_at)[-HISTORY_FITS:]
     else:
         rows = crud.good_parameter_history(session, breaker_id=breaker.id, name=parameter,
                                            since=breaker.baseline_reset_at, last=HISTORY_FITS)

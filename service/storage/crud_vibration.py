@@ -52,6 +52,20 @@ def breaker_fingerprint(session: Session, *, breaker_id: int, kind: str):
     return fp.fit([ch for _, ch in rows], operation_ids=[i for i, _ in rows])
 
 
+WATCHABLE = ("latch_time_s", "buffer_ratio")
+"""The vibration's characteristics the drift detector may watch (``[alarms.watched]``)."""
+
+
+def characteristic_history(session: Session, *, breaker_id: int, name: str, since: datetime | None = None) -> list:
+    """The openings' values of characteristic ``name`` (``WATCHABLE``), oldest first, shaped like
+    parameter rows; the latch time through :func:`latch_history` (a missed strike left out)."""
+    if name == "latch_time_s":
+        return latch_history(session, breaker_id=breaker_id, since=since)
+    return [SimpleNamespace(operation_id=op_id, occurred_at=t, value=float(ch[name]), ci_low=None, ci_high=None)
+            for op_id, t, ch in session.execute(_done_fits(breaker_id, "open", since))
+            if ch and isinstance(ch.get(name), (int, float))]
+
+
 def latch_history(session: Session, *, breaker_id: int, since: datetime | None = None) -> list:
     """The openings' read latch times [s], oldest first, shaped like parameter rows for the drift
     detector (``operation_id``, ``occurred_at``, ``value``; no interval). An opening whose first

@@ -67,3 +67,23 @@ def test_a_nan_vibration_in_a_file_is_left_out_not_refused(breaker, opening):
     r = fit_capture(read, breaker, "open")
     assert r.characteristics["latch_time_s"] is None
     assert "20 NaN or infinite samples" in r.characteristics["latch_time_reason"]
+
+
+@pytest.mark.parametrize("name", ["open-nominal", "open-buffer-leak"])
+def test_the_buffer_shock_is_where_the_fitted_travel_reaches_alpha0(breaker, samples_dir, name):
+    from drivers.capture_file import read_capture
+
+    ch = fit_capture(read_capture(samples_dir / f"{name}.cfg"), breaker, "open").characteristics
+    # the independent simulator's buffer shock sits at the travel's buffer engagement, leak or not
+    assert abs(ch["buffer_offset_s"]) < 0.1e-3 and ch["buffer_ratio"] == pytest.approx(1.0, abs=0.005)
+
+
+def test_a_buffer_shock_the_travel_does_not_explain_moves_the_ratio(breaker, opening):
+    from service.vibration.characteristics import buffer_offset
+
+    cap, truth = opening
+    model = np.where(cap.t > truth.t_motion + 0.025, 1.0, 0.0)  # reaches α0 25 ms after motion
+    late = [{"name": "buffer_engagement", "t_s": 0.027, "peak_g": 200.0, "clipped": False}]
+    got = buffer_offset(late, model, cap.sample_rate, truth.t_motion, alpha0=0.5)
+    assert got["buffer_offset_s"] == pytest.approx(2e-3, abs=0.05e-3) and got["buffer_ratio"] == pytest.approx(1.08, abs=0.005)
+    assert buffer_offset([], model, cap.sample_rate, truth.t_motion, 0.5)["buffer_offset_s"] is None
