@@ -112,20 +112,22 @@ def residual_ar(e: np.ndarray, max_order: int | None = None) -> tuple[int, np.nd
     """AR(p) model of a residual ``e`` (n,), p by BIC (Schwarz 1978), Yule–Walker estimates.
 
     Returns (p, φ (p,), γ (n,)): the order, the coefficients and the model's autocovariance at
-    lags 0..n−1 [unit²] (the sample's for lags ≤ p, the Yule–Walker recursion beyond).
+    lags 0..n−1 [unit²] (the sample's for lags ≤ p, the Yule–Walker recursion beyond). One
+    Levinson–Durbin recursion gives every order's coefficients and innovation variance at once.
     """
-    from scipy.linalg import solve_toeplitz
-
     n = e.size
     top = int(min(MAX_AR_ORDER if max_order is None else max_order, n // 10))
     g = np.array([np.dot(e[:n - k], e[k:]) / n for k in range(top + 1)])
     best = (np.log(g[0]) if g[0] > 0 else -np.inf, 0, np.zeros(0))
+    phi, s2 = np.zeros(0), float(g[0])
     for p in range(1, top + 1):
-        try:
-            phi = solve_toeplitz(g[:p], g[1:p + 1])
-        except np.linalg.LinAlgError:
+        if not s2 > 0:
             break
-        s2 = g[0] - phi @ g[1:p + 1]
+        k = (g[p] - phi @ g[p - 1:0:-1]) / s2 if p > 1 else g[1] / s2
+        if not abs(k) < 1.0:  # not positive definite (rounding): no higher order is valid
+            break
+        phi = np.concatenate([phi - k * phi[::-1], [k]])
+        s2 = s2 * (1.0 - k * k)
         if not s2 > 0:
             break
         bic = np.log(s2) + np.log(n) * p / n
@@ -152,12 +154,15 @@ def toeplitz_quadratic(J: np.ndarray, gam: np.ndarray) -> np.ndarray:
     return M
 
 
-def correlated_covariance(jacobian, residual, noise_sd: float, scale, n_model: int | None = None) -> Uncertainty:
+def correlated_covariance(jacobian, residual, noise_sd: float, scale, n_model: int | None = None,
+                          variance_factor: float = 1.0) -> Uncertainty:
     """The fit's covariance from the residual it leaves, with its correlation (module docstring).
 
     ``jacobian`` (n, p) and ``residual`` (n,) are the fit's weighted residual rows and their
     derivatives, in time order, at the estimate [rad, rad per parameter unit]; ``noise_sd`` the
-    idle samples' σ [rad]. Each standard error is at least the classical one (σ²(JᵀJ)⁻¹).
+    idle samples' σ [rad]. ``variance_factor`` scales the residual's covariance (the residual
+    less a mean of k earlier ones has (1 + 1/k) times the variance it stands for:
+    service.estimation.model_bias). Each standard error is at least the classical one (σ²(JᵀJ)⁻¹).
     """
     white = covariance(jacobian, noise_sd, scale, n_model)
     J = np.asarray(jacobian, dtype=float) * scale[None, :]
@@ -172,7 +177,7 @@ def correlated_covariance(jacobian, residual, noise_sd: float, scale, n_model: i
     except np.linalg.LinAlgError:
         Ainv = np.linalg.pinv(A / np.outer(d, d)) / np.outer(d, d)
     order, phi, gam = residual_ar(e)
-    cov_r = Ainv @ toeplitz_quadratic(J, gam) @ Ainv * np.outer(scale, scale)
+    cov_r = Ainv @ toeplitz_quadratic(J, gam) @ Ainv * np.outer(scale, scale) * variance_factor
     sd_r = np.sqrt(np.clip(np.diag(cov_r), 0, None))
     widen = np.where(sd_r > white.stderr, sd_r / np.where(white.stderr > 0, white.stderr, 1.0), 1.0)
     sd = white.stderr * widen
