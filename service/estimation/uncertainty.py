@@ -19,6 +19,7 @@ noise the interval is as before.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -117,29 +118,39 @@ def residual_ar(e: np.ndarray, max_order: int | None = None) -> tuple[int, np.nd
     """
     n = e.size
     top = int(min(MAX_AR_ORDER if max_order is None else max_order, n // 10))
-    g = np.array([np.dot(e[:n - k], e[k:]) / n for k in range(top + 1)])
-    best = (np.log(g[0]) if g[0] > 0 else -np.inf, 0, np.zeros(0))
-    phi, s2 = np.zeros(0), float(g[0])
+    g = np.array([e[:n - k] @ e[k:] for k in range(top + 1)]) / n
+    gl = g.tolist()  # the recursion on Python floats: a few hundred scalar steps, no array overhead
+    best = (math.log(gl[0]) if gl[0] > 0 else -math.inf, 0, [])
+    phi, s2 = [], gl[0]
     for p in range(1, top + 1):
         if not s2 > 0:
             break
-        k = (g[p] - phi @ g[p - 1:0:-1]) / s2 if p > 1 else g[1] / s2
+        k = (gl[p] - sum(f * gl[p - 1 - i] for i, f in enumerate(phi))) / s2
         if not abs(k) < 1.0:  # not positive definite (rounding): no higher order is valid
             break
-        phi = np.concatenate([phi - k * phi[::-1], [k]])
+        phi = [f - k * phi[-1 - i] for i, f in enumerate(phi)] + [k]
         s2 = s2 * (1.0 - k * k)
         if not s2 > 0:
             break
-        bic = np.log(s2) + np.log(n) * p / n
+        bic = math.log(s2) + math.log(n) * p / n
         if bic < best[0]:
             best = (bic, p, phi)
     _, p, phi = best
+    phi = np.array(phi, dtype=float)
     gam = np.zeros(n)
     gam[:p + 1] = g[:p + 1]
-    for k in range(p + 1, n):
-        gam[k] = phi @ gam[k - p:k][::-1]
-        if abs(gam[k]) < 1e-9 * g[0] and k > 2 * p:  # decayed: the rest is zero to rounding
-            break
+    if p > 0 and n > p + 1:
+        # γ(k) = Σ φᵢ γ(k − i) beyond lag p: an all-pole recursion, run by lfilter from the last p lags
+        from scipy.signal import lfilter, lfiltic
+
+        a = np.concatenate([[1.0], -phi])
+        zi = lfiltic([1.0], a, gam[p:0:-1])
+        gam[p + 1:] = lfilter([1.0], a, np.zeros(n - p - 1), zi=zi)[0]
+        # decayed: the rest is zero to rounding (and toeplitz_quadratic stops at the last lag kept)
+        k = np.arange(n)
+        small = np.nonzero((np.abs(gam) < 1e-9 * g[0]) & (k > 2 * p))[0]
+        if small.size:
+            gam[small[0]:] = 0.0
     return p, phi, gam
 
 
