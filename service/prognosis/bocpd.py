@@ -39,18 +39,20 @@ the share of crossing draws that changed pace before they crossed.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numba import njit
 
+from service.prognosis.wiener import SIM_DRAWS, mixed_log_density, share_draws, simulation_grid
+
 HAZARD_SCALES = (100.0, 316.0, 1000.0, 3160.0, 10000.0)  # lambda grid [operations]
 MIN_MASS = 1e-6
-MAX_HYPOTHESES = 80
+MAX_HYPOTHESES = 40
+MAX_SEGMENTS = 12  # the forecast's current-segment hypotheses, the most probable
 # The change is looked for among the last RECENT fits (and the segments drawn through them): a
 # bounded cost per prognosis however long the basis.
 RECENT = 400
-SIM_DRAWS = 1000
 SEED = 2007
 FLAT_SHARE = 0.5  # a new segment is flat or sloped with equal prior probability
 
@@ -129,22 +131,35 @@ def run_length_recursion(y, w, phi, nuis, nuis_var, a0, va, vb, prior_sd2, prior
             out[i] = math.log(total) + best
         for j in range(live):
             mass[j] /= total
-        # prune: drop tiny masses, then keep the MAX_HYPOTHESES largest
-        order = np.argsort(-mass[:live])
+        # prune: drop tiny masses, then keep the MAX_HYPOTHESES largest (compacting in place)
+        small = 0
+        for j in range(live):
+            if mass[j] < MIN_MASS:
+                small += 1
+        if small == 0 and live <= MAX_HYPOTHESES:
+            continue
+        if live - small > MAX_HYPOTHESES:
+            cut = np.sort(mass[:live])[live - MAX_HYPOTHESES]
+        else:
+            cut = MIN_MASS
         keep = 0
-        for jj in range(live):
-            j = order[jj]
-            if keep >= MAX_HYPOTHESES or (mass[j] < MIN_MASS and keep > 0):
-                break
-            keep += 1
-        sel = order[:keep].copy()
-        mass[:keep] = mass[sel]
-        kind[:keep] = kind[sel]
-        start[:keep] = start[sel]
-        beta[:keep] = beta[sel]
-        cov[:keep] = cov[sel]
-        ssr[:keep] = ssr[sel]
-        cnt[:keep] = cnt[sel]
+        for j in range(live):
+            if mass[j] >= cut and keep < MAX_HYPOTHESES:
+                if keep != j:
+                    mass[keep] = mass[j]
+                    kind[keep] = kind[j]
+                    start[keep] = start[j]
+                    beta[keep] = beta[j]
+                    cov[keep] = cov[j]
+                    ssr[keep] = ssr[j]
+                    cnt[keep] = cnt[j]
+                keep += 1
+        if keep == 0:  # every mass tiny: keep the largest
+            j = np.argmax(mass[:live])
+            mass[0], kind[0], start[0], ssr[0], cnt[0] = mass[j], kind[j], start[j], ssr[j], cnt[j]
+            beta[0] = beta[j]
+            cov[0] = cov[j]
+            keep = 1
         live = keep
         s = mass[:live].sum()
         mass[:live] /= s
@@ -174,6 +189,7 @@ class SegmentFit:
     slope_var: float
     variant: str = "since the last change"
     shape: float = 1.0
+    sim_draws: int = SIM_DRAWS
     _cache: dict = field(default_factory=dict, compare=False, repr=False)
 
     def level(self, n):
@@ -196,7 +212,7 @@ class SegmentFit:
         have = self._cache.get(key)
         if have is None or have[0][-1] < t_max:
             top = max(1e4, 2.0 * t_max)
-            grid_t = np.unique(np.concatenate([[0.0], np.arange(1.0, 200.0), np.geomspace(200.0, top, 160)]))
+            grid_t = simulation_grid(top)
             have = _simulate_segments(self, limit, direction, grid_t)
             self._cache[key] = have
         return have
@@ -242,7 +258,7 @@ def _segment_kernel(d0, v0, g, slope_sd, hazard, grid_t, seed):
 
 def _simulate_segments(seg: SegmentFit, limit: float, direction: str, grid_t: np.ndarray):
     rng = np.random.default_rng(SEED)
-    k = SIM_DRAWS
+    k = seg.sim_draws
     sign = 1.0 if direction == "falling" else -1.0
     cov = 0.5 * (seg.cov + seg.cov.T)
     g = math.sqrt(seg.dof) / np.sqrt(rng.chisquare(seg.dof, k))
@@ -329,8 +345,6 @@ def fit_change_points(n, y, w, nuis, nuis_var, *, centre: float, scale_ops: floa
             va, vb, s2, float(prior_dof), dn, float(lam), first)
         lps.append(lp)
         finals.append((mass, kind, start, beta, cov, ssr, cnt))
-    from service.prognosis.wiener import mixed_log_density
-
     mixed, post_lam = mixed_log_density(np.array(lps))
     hazard = float(sum(p / lam for p, lam in zip(post_lam, hazards)))
     comps, wts = [], []
@@ -353,7 +367,9 @@ def fit_change_points(n, y, w, nuis, nuis_var, *, centre: float, scale_ops: floa
                                     kind="flat" if kind[j] == 1 else "sloped", start_n=float(n[start[j]]),
                                     n_now=float(n[-1]), scale_ops=scale_ops, hazard=hazard, slope_var=vb * s2))
             wts.append(wt)
-    wts = np.array(wts) / np.sum(wts)
+    order = np.argsort(wts)[::-1][:MAX_SEGMENTS]
+    wts = np.array(wts)[order] / np.sum(np.array(wts)[order])
+    comps = [replace(comps[i], sim_draws=nd) for i, nd in zip(order, share_draws(wts))]
     # the most probable start of the current segment, and the level step there
     s_best = max(start_mass, key=start_mass.get)
     step = step_sd = None

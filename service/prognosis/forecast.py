@@ -47,7 +47,7 @@ from service.prognosis.paths import (
     lfo_log_density,
     shape_column,
 )
-from service.prognosis.wiener import SLOWING_GRID, fit_stochastic
+from service.prognosis.wiener import SLOWING_GRID, fit_stochastic, share_draws
 
 MODEL = ("linear and power-law degradation paths (Gebraeel et al. 2005), a Wiener/gamma process with its "
          "diffusion from the history (Si et al. 2012; van Noortwijk 2009) and a line since the last change "
@@ -472,8 +472,9 @@ def stochastic_families(b: Basis, *, monotone: bool) -> list:
     for name, fam in (("stochastic", fit_stochastic(b.n[keep], b.y[keep], b.w[keep], nuis, var, **kw)),
                       ("slowing", fit_stochastic(b.n[keep], b.y[keep], b.w[keep], nuis, var, **kw,
                                                  drift_grid=(0.0,), clock_powers=SLOWING_GRID))):
-        members = [(replace(c_, kind=k_, variant=name, _draws={}), wt / len(kinds))
-                   for c_, wt in zip(fam.components, fam.weights) for k_ in kinds]
+        members = [(replace(c_, kind=k_, variant=name, sim_draws=nd, _draws={}), wt / len(kinds))
+                   for c_, wt, nd in zip(fam.components, fam.weights, share_draws(fam.weights / len(kinds)))
+                   for k_ in kinds]
         out.append((name, members, fam.log_density))
     return out
 

@@ -59,13 +59,16 @@ DRIFT_WANDER_GRID = (0.0, 4.0, 32.0, 256.0, 2048.0)
 # Slowing exponents k of Lambda(n) = n^k: the concave range (0, 1) in quarters.
 SLOWING_GRID = (0.25, 0.5, 0.75)
 DRAWS = 128  # stratified (Latin hypercube) draws for the closed form
-SIM_DRAWS = 1000  # simulated paths: the Monte Carlo sd of a 5 % quantile's level is 0.007
+# Simulated paths per family, shared among its members in proportion to their weights (at least
+# MIN_SIM_DRAWS each): the Monte Carlo sd of a crossing probability of 5 % is then 0.007.
+SIM_DRAWS = 1000
+MIN_SIM_DRAWS = 64
 SEED = 2012
 DIFFUSE = 1e8  # prior variance of the level and drift [sigma^2 units]: flat in practice
 # Grid points below this posterior weight are dropped from the forecast (and the rest
 # renormalised): they move no quantile the answer shows.
 MIN_WEIGHT = 1e-3
-MAX_COMPONENTS = 6
+MAX_COMPONENTS = 4
 
 
 @njit(cache=True)
@@ -154,6 +157,7 @@ class WienerFit:
     kind: str = "wiener"
     variant: str = "stochastic"
     shape: float = 1.0
+    sim_draws: int = SIM_DRAWS
     _draws: dict = field(default_factory=dict, compare=False, repr=False)
 
     def clock(self, n):
@@ -210,9 +214,9 @@ class WienerFit:
         have = self._draws.get(key)
         if have is None or have[0][-1] < t_max:
             top = max(1e4, 2.0 * t_max)
-            grid_t = np.unique(np.concatenate([[0.0], np.arange(1.0, 200.0), np.geomspace(200.0, top, 160)]))
+            grid_t = simulation_grid(top)
             sign = 1.0 if direction == "falling" else -1.0
-            lvl, b, g2 = self.draws(SIM_DRAWS)
+            lvl, b, g2 = self.draws(self.sim_draws)
             now = self.clock(self.n_now)
             cdf = simulate_passage(sign * (lvl - limit), -sign * b, self.diffusion * g2, self.drift_wander * g2,
                                    grid_t, kind=self.kind, seed=SEED,
@@ -220,6 +224,17 @@ class WienerFit:
             have = (grid_t, np.maximum.accumulate(cdf))
             self._draws[key] = have
         return have
+
+
+def simulation_grid(top: float) -> np.ndarray:
+    """Operations ahead a simulated path is followed on: each of the first 100, then 100
+    geometric steps to ``top`` (a crossing's quantile between two points is interpolated)."""
+    return np.unique(np.concatenate([[0.0], np.arange(1.0, 100.0), np.geomspace(100.0, top, 100)]))
+
+
+def share_draws(weights) -> list[int]:
+    """Simulated paths per member: SIM_DRAWS shared by weight, at least MIN_SIM_DRAWS each."""
+    return [max(MIN_SIM_DRAWS, int(round(SIM_DRAWS * float(w)))) for w in weights]
 
 
 @dataclass(frozen=True)
