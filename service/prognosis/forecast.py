@@ -208,7 +208,7 @@ def prognose(state: DriftState, history: Sequence[FitObservation], limit: Parame
                   paths=_weights_by_label(fit),
                   seasonal=fit.seasonal, low_frequency_sd=fit.low_frequency_sd)
     ops = [mix.crossing_quantile(bound, direction, p, n_now=n_now, horizon=horizon) for p in QUANTILES]
-    common.update(change_words(fit, history, bound, direction))
+    common.update(change_words(fit, history, bound, direction, model.centre))
     ahead, cdf = mix.crossing_cdf(bound, direction, n_now=n_now, horizon=horizon)
     p_within = float(np.interp(horizon, ahead, cdf))
     years = f"{horizon_years:g} years" if rate else f"{ENDURANCE_OPERATIONS:,} operations"
@@ -247,7 +247,7 @@ def prognose(state: DriftState, history: Sequence[FitObservation], limit: Parame
 STEP_Z = 4.0
 
 
-def change_words(fit: PathsFit, history: list, bound: float, direction: str) -> dict:
+def change_words(fit: PathsFit, history: list, bound: float, direction: str, centre: float) -> dict:
     """The change-point family's part of the answer: the chance of a change of pace before the
     crossing (its segments' simulated share, averaged with their weights), the learnt hazard, and
     a level step with no maintenance logged, in words (the history starts at the last logged
@@ -266,7 +266,7 @@ def change_words(fit: PathsFit, history: list, bound: float, direction: str) -> 
         i = int(fit_index(fit, cp.last_change))
         if 0 <= i < len(history):
             when = history[i].time.strftime("%Y-%m-%d")
-            rel = cp.step / abs(fit.y[0]) * 100.0 if len(fit.y) and fit.y[0] else float("nan")
+            rel = cp.step / abs(centre) * 100.0  # of the baseline
             out["notes"].append(
                 f"a level step of {rel:+.1f} % on {when} (operation {history[i].operation_id}) with no maintenance "
                 f"logged: it is read as a real change of the mechanism and stays in the trend; if the sensor was "
