@@ -480,13 +480,31 @@ def stochastic_families(b: Basis, *, monotone: bool) -> list:
 
 
 def change_point_family(b: Basis):
-    """The segments since the last change found on the history (bocpd.py), or None."""
-    keep, shared = b.keep, b.shared()
-    cp = fit_change_points(b.n[keep], b.y[keep], b.w[keep],
-                           np.stack([c_ for c_, _ in shared], axis=1) if shared else None,
-                           [v_ for _, v_ in shared], centre=b.centre, scale_ops=b.scale_ops, prior_sd=b.sd,
-                           prior_dof=b.dof, first=b.first_pred, d0=b.d0)
-    return cp
+    """The segments since the last change found on the history (bocpd.py), or None.
+
+    The nuisances (the annual harmonics, the temperature slope's error and bend) are global, not
+    a segment's: they are taken out first, at their values in the straight line's fit over the
+    whole window (their posterior mean), so a segment never re-learns a season."""
+    keep = b.keep
+    x, prec = b.design(1.0, "free")
+    line = b.fit(1.0, "free", keep)
+    y = b.y[keep].copy()
+    nuis_cols = [j for j in range(2, x.shape[1]) if not (b.variants == ("free", "anchored") and j == _level_before(b))]
+    for j in nuis_cols:
+        y -= line.beta[j] * x[keep][:, j]
+    return fit_change_points(b.n[keep], y, b.w[keep], None, [], centre=b.centre, scale_ops=b.scale_ops,
+                             prior_sd=b.sd, prior_dof=b.dof, first=b.first_pred, d0=b.d0)
+
+
+def _level_before(b: Basis) -> int:
+    """The column of the free curve's own level before the change point (a segment's business,
+    not a nuisance)."""
+    x, _ = b.design(1.0, "free")
+    before = (~b.in_basis).astype(float)
+    for j in range(2, x.shape[1]):
+        if np.array_equal(x[:, j], before):
+            return j
+    return -1
 
 
 def fit_paths(state: DriftState, history: list, start: int, *, monotone: bool = False) -> PathsFit:
