@@ -7,7 +7,7 @@ Pure, numpy/scipy only.
   with the same mean and variance per operation (van Noortwijk 2009) has crossed by t when its
   loss exceeds the distance, the regularised upper incomplete gamma function.
 - ``simulate_passage``: when the drift itself wanders (a random walk of the drift, the
-  adaptive-drift Wiener model of Si, Wang, Chen, Hu & Zhou 2013, MSSP 41, carried into the
+  adaptive-drift Wiener model of Si, Wang, Hu, Chen & Zhou 2013, MSSP 35, carried into the
   future rather than frozen at its filtered value), or the drift acts on a transformed time
   scale Lambda(n) (Si et al. 2012; Whitmore & Schenkelberg 1997), no closed form holds for the
   general case. The state (level, drift) is drawn from its posterior and moved forward on the

@@ -9,7 +9,7 @@ Pure, numpy/numba/scipy only. The compensated value after operation n is
     b(n) = b(n') + V(n) - V(n'),                                   var V = rho sigma^2 / S per op
 
 (Whitmore 1995; Si, Wang, Hu & Zhou 2012 for the Wiener path with measurement error; Si, Wang,
-Chen, Hu & Zhou 2013, MSSP 41, 219-237, for the drift as a hidden state updated by a Kalman
+Hu, Chen & Zhou 2013, MSSP 35, 219-237, for the drift as a hidden state updated by a Kalman
 filter with its own process noise). Phi(n) = ((n - d0) / S)^k for n past the basis's start
 (d0 = start - 1, S the basis's length), 0 before: k = 1 is operations themselves; k < 1 is the
 time-scale transform Lambda(n) = n^k of a path that slows (Si et al. 2012, Whitmore &
