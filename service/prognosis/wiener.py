@@ -127,8 +127,12 @@ def kalman(y, w, h, dn, gate, prior_var, r, qb, prior_sd2, prior_dof, first):
 
 
 def clock_of(n, d0: float, scale_ops: float, k: float):
-    """The drift's clock Phi(n) = ((n - d0) / S)^k past d0, 0 before [-]."""
-    return (np.maximum(np.asarray(n, dtype=float) - d0, 0.0) / scale_ops) ** k
+    """The drift's clock past d0, 0 before [-]: (n - d0) / S for k = 1; for a slowing path
+    (k < 1) the shifted power (1 + (n - d0) / S)^k - 1, whose rate is finite at the basis's start
+    and falls by the factor 2^(k - 1) from there to one basis length on (a plain power's rate is
+    infinite at the start: it would read the first few fits after the change point as the path)."""
+    x = np.maximum(np.asarray(n, dtype=float) - d0, 0.0) / scale_ops
+    return x if k == 1.0 else (1.0 + x) ** k - 1.0
 
 
 @dataclass(frozen=True)

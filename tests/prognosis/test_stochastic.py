@@ -149,13 +149,16 @@ def test_a_slowing_path_is_found_on_its_own_clock():
     rng = np.random.default_rng(13)
     m = 300
     n = np.arange(m, dtype=float)
-    y = 10 - 1.5 * ((n + 1) / m) ** 0.5 + 0.05 * rng.standard_normal(m)
+    clock = lambda x: (1.0 + x / m) ** 0.5 - 1.0  # noqa: E731  (the shifted power, k = 1/2)
+    y = 10 - 4.0 * clock(n + 1) + 0.05 * rng.standard_normal(m)
     fam = fit_stochastic(n, y, np.ones(m), None, [], start=0.0, scale_ops=float(m), prior_sd=0.05, prior_dof=20.0,
                          first=5, drift_grid=(0.0,), clock_powers=(0.25, 0.5, 0.75, 1.0))
     assert fam.grid_weights[("clock", 0.5)] > 0.5 and fam.grid_weights[("clock", 1.0)] < 0.05
     c = fam.components[0]
-    # it slows: the next 300 operations lose less than the last 300 did (1.5 x (sqrt 2 - 1) = 0.62)
-    assert c.level(n[-1] + 300)[0] - c.level(n[-1])[0] == pytest.approx(-0.62, abs=0.1)
+    # it slows: the next 300 operations lose what the clock says (4 (sqrt 3 - sqrt 2) = 1.27), not
+    # the last 300's 1.66
+    want = -4.0 * (clock(n[-1] + 301) - clock(n[-1] + 1))
+    assert c.level(n[-1] + 300)[0] - c.level(n[-1])[0] == pytest.approx(want, abs=0.15)
 
 
 def test_the_rate_counts_the_gap_that_straddles_the_year():
