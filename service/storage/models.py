@@ -257,6 +257,23 @@ class SpringReferenceRow(Base):
     recorded_at: Mapped[datetime] = mapped_column(default=utcnow)
 
 
+class MaintenanceEventRow(Base):
+    """One entry of the engineer's maintenance log (issue 50, docs/alarms.md "Maintenance log"):
+    ``kind`` (service.alarms.maintenance.KINDS), when it was done and by whom, and the
+    parameters it touches: their baseline, alarms and prognosis restart at ``done_at``."""
+
+    __tablename__ = "maintenance_events"
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    breaker_id: Mapped[int] = mapped_column(ForeignKey("breakers.id", ondelete="CASCADE"), index=True)
+    kind: Mapped[str] = mapped_column(String(64))
+    done_at: Mapped[datetime]
+    done_by: Mapped[str] = mapped_column(String(200))
+    note: Mapped[str] = mapped_column(String(500), default="")
+    parameters: Mapped[list] = mapped_column(default=list)
+    recorded_by: Mapped[str] = mapped_column(String(200))
+    recorded_at: Mapped[datetime] = mapped_column(default=utcnow)
+
+
 class ApiKeyRow(Base):
     """An API key: only its SHA-256 is stored (keys are 256-bit random, so a fast hash is enough)."""
 
