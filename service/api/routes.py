@@ -410,6 +410,16 @@ def _scada_points(session, settings) -> list[s.ScadaPoint]:
                                            timestamp=ts, quality=quality,
                                            shelved_until=shelf.shelved_until if shelf else None,
                                            shelved_by=shelf.shelved_by if shelf else None))
+            if kind == "open":  # the vibration's trip-latch time (service.vibration), from the same fit
+                latch = (fit.characteristics or {}).get("latch_time_s") if fit is not None else None
+                ts = fit.operation.occurred_at if fit is not None else None
+                good = isinstance(latch, (int, float)) and not daq_down and ts is not None and now - ts <= stale
+                shelf = shelves.get("latch_time_s")
+                points.append(s.ScadaPoint(point=f"{row.tag}.opening.latch_time_s",
+                                           value=float(latch) if isinstance(latch, (int, float)) else None, unit="s",
+                                           timestamp=ts, quality="good" if good else "bad",
+                                           shelved_until=shelf.shelved_until if shelf else None,
+                                           shelved_by=shelf.shelved_by if shelf else None))
         points.append(s.ScadaPoint(point=f"{row.tag}.alarm_level", value=float(level), unit="1", timestamp=now,
                                    quality="good"))
         if row.id in soonest:  # median openings to the soonest limit; null: none within the horizon

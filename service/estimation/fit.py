@@ -179,6 +179,13 @@ def fit_capture(capture: Capture, breaker: Breaker, operation: str, *, dc: float
     result.characteristics = travel_characteristics(
         capture.t, capture.travel, operation, stroke=breaker.stroke, t_start=window.t_start,
         alpha0=result.structure.get("alpha0", {}).get("value", breaker.alpha0))
+    from ..vibration import VibrationError, unread as unread_vibration, vibration_characteristics
+
+    try:  # the vibration's latch time and events (service.vibration); a bad channel never fails the fit
+        result.characteristics.update(vibration_characteristics(
+            capture, operation, window.t_start + result.onset_delay_s, window.t_end))
+    except VibrationError as exc:
+        result.characteristics.update(unread_vibration(str(exc)))
     if capture.meta.get("travel_map"):
         from .structure import characteristics_in_record_unit
 

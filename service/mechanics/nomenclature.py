@@ -20,6 +20,7 @@ UNITS = {
     "BC": "–",    # J2/J1: inertia factor (a ratio)
     "CC": "s⁻²",  # (TCf + kO·xO0·rO)/J2: closing resistance factor
     "DC": "s⁻²",  # kO·rO²/J2 = AO, seen while closing
+    "latch_time_s": "s",  # the vibration's first shock to the start of motion (service.vibration), not fitted
 }
 
 # Each parameter in words (docs/models.md's table, shortened to what an engineer calls it).
@@ -33,6 +34,7 @@ NAMES = {
     "BC": "inertia ratio",
     "CC": "closing resistance",
     "DC": "opening spring stiffness seen while closing",
+    "latch_time_s": "trip latch time",
 }
 
 
