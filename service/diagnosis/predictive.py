@@ -49,6 +49,7 @@ import numpy as np
 from ..mechanics.effects import REFERENCE_STRENGTHS as REALISTIC
 from .hypotheses import family_starts, signature
 from .linearised import exact_fit, member_from_pair
+from .parallel import pmap
 from .noise import AR_ORDER, NOISE_KNOT_S, _orth, _prewhiten, spline_basis, yule_walker  # noqa: F401 (re-exported)
 from .windows import Windows
 
@@ -156,12 +157,13 @@ def capture_bases(windows: Windows, catalogue, filters=None) -> list:
     (``filters``: the noise filters to use, e.g. those of the reduced fit's residual, so that
     densities at another nuisance profile compare)."""
     op, br = windows.operation, windows.breaker
-    times = [motion_time(cw, br, op) for cw in windows.captures]
+    times = pmap(lambda cw: motion_time(cw, br, op), windows.captures)
     t_ref = float(np.median([t90 for _, t90 in times]))
     lo = min(float(tm[0]) * t_ref / t90 for tm, t90 in times)
     hi = max(float(tm[-1]) * t_ref / t90 for tm, t90 in times) + 1e-9
-    out = []
-    for i, (cw, (tm, t90)) in enumerate(zip(windows.captures, times)):
+
+    def one(i):
+        cw, (tm, t90) = windows.captures[i], times[i]
         f, ar = _prewhiten(cw) if filters is None else filters[i]
         Qw = _orth(f(cw.Q))
         P = (lambda X, Qw=Qw: X - Qw @ (Qw.T @ X))
@@ -176,8 +178,9 @@ def capture_bases(windows: Windows, catalogue, filters=None) -> list:
         u = tm * t_ref / t90
         D = spline_basis(u, lo, hi, KNOT_S) * cw.data.weight[:, None]
         cols["__disc__"] = P(f(D))
-        out.append(_Cap(P(f(cw.r[:, None]))[:, 0], cols, u, ar, f, Qw))
-    return out
+        return _Cap(P(f(cw.r[:, None]))[:, 0], cols, u, ar, f, Qw)
+
+    return pmap(one, range(len(windows.captures)))
 
 
 def point_gain(caps, effect: str) -> float:
@@ -247,10 +250,13 @@ def local_subspace(windows, caps, effect: str, st: float, sh):
             v = sh.copy()
             v[j] = np.clip(v[j] + sg * d, lo[j], hi[j])
             pts.append((st, v))
-    for c, cw in zip(caps, windows.captures):
+
+    def one(item):
+        c, cw = item
         sigs = [signature(cw, op, br, [(effect, float(a), np.asarray(b, float))]) for a, b in pts]
-        sigs = [np.where(np.abs(x) < 1e3, x, 0.0) for x in sigs]
-        c.cols[effect] = c.columns(sigs)
+        c.cols[effect] = c.columns([np.where(np.abs(x) < 1e3, x, 0.0) for x in sigs])
+
+    pmap(one, list(zip(caps, windows.captures)))
     family_subspace(caps, effect)
 
 
