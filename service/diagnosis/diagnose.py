@@ -34,7 +34,8 @@ __all__ = ["diagnose", "DiagnosisError"]
 
 
 def diagnose(captures, breaker: Breaker, operation: str, *, effects=None, seed: int = 1,
-             fitter=None, next_measurements: bool = True, strengths: dict | None = None) -> dict:
+             fitter=None, next_measurements: bool = True, strengths: dict | None = None,
+             features: bool = False) -> dict:
     """Diagnose the sim-to-real gap of one breaker from its captures of one operation.
 
     Parameters
@@ -54,6 +55,8 @@ def diagnose(captures, breaker: Breaker, operation: str, *, effects=None, seed: 
     strengths : dict, optional
         The breaker's typical effect strengths (its breaker file's ``[effects]``; default the
         catalogue's REFERENCE_STRENGTHS): the scale of the fits and of the ``absorbed`` check.
+    features : bool
+        Also return every hypothesis's features (``features.collect``) as ``features``.
 
     Returns
     -------
@@ -70,7 +73,8 @@ def diagnose(captures, breaker: Breaker, operation: str, *, effects=None, seed: 
         raise DiagnosisError(f"none of the given effects acts on an {operation} operation")
     windows = prepare(list(captures), breaker, operation, fitter=fitter, seed=seed)
     try:
-        return _diagnose(windows, catalogue, strengths, next_measurements, t0, time.perf_counter() - t0)
+        return _diagnose(windows, catalogue, strengths, next_measurements, t0, time.perf_counter() - t0,
+                         features)
     except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:
         # a numerical failure: said in words naming the records and what failed where, never
         # the library's message (issue 42 item 5: the former words blamed the records' numbers
@@ -78,7 +82,7 @@ def diagnose(captures, breaker: Breaker, operation: str, *, effects=None, seed: 
         raise DiagnosisError(refusal(windows, exc)) from None
 
 
-def _diagnose(windows, catalogue, strengths, next_measurements, t0, t_prepare):
+def _diagnose(windows, catalogue, strengths, next_measurements, t0, t_prepare, features=False):
     t1 = time.perf_counter()
     scores = score(windows, catalogue)
     t2 = time.perf_counter()
@@ -91,6 +95,8 @@ def _diagnose(windows, catalogue, strengths, next_measurements, t0, t_prepare):
     result = build(fits, ev, dec, nm, ho, time.perf_counter() - t0, scores)
     result["stages_s"] = {"prepare": t_prepare, "evidence": t2 - t1, "report_refit": t3 - t2,
                           "rest": time.perf_counter() - t3}
+    if features:
+        result["features"] = scores.features
     return result
 
 

@@ -84,6 +84,7 @@ class Scores:
     linear_shrink: dict = field(default_factory=dict)
     refined: dict = field(default_factory=dict)    # family -> its nonlinear HypothesisFit
     exact: dict = field(default_factory=dict)      # hypothesis -> its exact joint refit
+    features: dict = field(default_factory=dict)   # ``features.collect``: every hypothesis's and the group's
 
     def ranked(self):
         return sorted(self.weights.items(), key=lambda kv: -kv[1])
@@ -491,6 +492,9 @@ def score(windows: Windows, catalogue) -> Scores:
     for k, v in hyps.items():
         if v and len(caps) and weights[k] >= 0.01:
             shrink[k] = linear_shrink(caps, v)
+    from .features import collect
+
+    feats = collect(caps, units, lpd, dims, hyps, singles)
     return Scores(list(hyps), dims,
                   lpd, {k: float(np.sum(v)) for k, v in lpd.items()}, prior, weights, kind, len(units),
-                  [c.ar for c in caps], shrink, refined, exact)
+                  [c.ar for c in caps], shrink, refined, exact, feats)
