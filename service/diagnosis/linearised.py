@@ -232,14 +232,15 @@ REPORT_GN_ITERS = 4   # Gauss–Newton steps of the reported answer's refit (``l
 REPORT_P = 0.05   # a hypothesis below this predictive weight is neither reported nor a rival worth refitting
 
 
-def fit_reported(windows, scores, rivals: int = 1):
+def fit_reported(windows, scores, rivals: int = 1, names=None):
     """The nonlinear joint refit of what is reported: ``none``, the ``rivals`` most probable
     hypotheses holding catalogued effects (by the predictive weights) and ``outside`` on the
     best of them. The evidence is not taken from these fits (``predictive`` gives it); they say
     how far the gap shrinks and what the effect does to the parameters."""
     hyps = {"none": none_fit(windows)}
-    ranked = [k for k, p in scores.ranked() if k not in ("none", "outside_catalogue") and p >= REPORT_P]
-    for name in ranked[:rivals]:
+    if names is None:
+        names = [k for k, p in scores.ranked() if k not in ("none", "outside_catalogue") and p >= REPORT_P][:rivals]
+    for name in names:
         effects = tuple(name.split("+"))
         h = getattr(scores, "exact", {}).get(name)
         if h is None:

@@ -122,6 +122,21 @@ class Scorer:
         self.scale_ = np.asarray(scale, float)
         self.meta = dict(meta or {})
 
+    @property
+    def qhat(self) -> float:
+        """The conformal threshold of the answer's set (1: the whole catalogue)."""
+        return float((self.meta.get("set") or {}).get("qhat", 1.0))
+
+    @property
+    def alpha(self) -> float:
+        return float((self.meta.get("set") or {}).get("alpha", 0.1))
+
+    @property
+    def lam(self):
+        """Learn then Test's naming threshold, or None (nothing is named)."""
+        v = (self.meta.get("name") or {}).get("lambda")
+        return None if v is None else float(v)
+
     def utilities(self, X: np.ndarray) -> np.ndarray:
         return ((X - self.mean_) / self.scale_) @ self.coef_
 
