@@ -79,7 +79,6 @@ def method_own(rows) -> dict:
         if r.get("error") or r.get("failed") or r.get("label") is None:
             continue
         lab = train.hyp_label(r["label"])
-        probs = r.get("probabilities") or {}
         top = r.get("answer")
         named = None
         if r.get("status") in ("named", "none", "unexplained"):
