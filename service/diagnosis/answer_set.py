@@ -3,8 +3,9 @@
 From the scorer's probabilities (``scorer``) and the two thresholds shipped with it:
 
 * the **90 % set**: adaptive prediction sets (APS; Romano, Sesia & Candès 2020, NeurIPS 33),
-  non-randomised: the most probable hypotheses until their probability mass reaches q̂, the
-  ⌈(n + 1)·0.9⌉-th smallest APS score of the calibration groups (``studies.gap.train``). On
+  their randomisation fixed at U = 0: every hypothesis whose probability mass ranked above it is
+  at most q̂, the ⌈(n + 1)·0.9⌉-th smallest such score of the calibration groups' truths
+  (``studies.gap.train``). On
   groups exchangeable with the calibration groups it holds the truth with probability ≥ 90 %;
   the calibration groups are simulated (prototypes and sensor kinds named in the scorer's
   provenance), so on a real breaker that is an assumption, which the held-out figures test;
@@ -51,10 +52,10 @@ def answer_set(probs: dict, qhat: float, lam: float | None, alpha: float = 0.1) 
     ranked = sorted(probs.items(), key=lambda kv: (-kv[1], kv[0]))
     members, mass = [], 0.0
     for k, p in ranked:
+        if mass > qhat + 1e-12:
+            break
         members.append(k)
         mass += p
-        if mass >= qhat - 1e-12:
-            break
     top, p_top = ranked[0]
     named = lam is not None and p_top >= lam
     status = ({"none": "none", OUTSIDE: "unexplained"}.get(top, "named") if named else "ambiguous")
