@@ -123,6 +123,8 @@ def prepare(captures, breaker: Breaker, operation: str, *, fitter=None, seed: in
             if not ours and re.search(r"\b(nans?|infs?|infinity)\b", msg, re.IGNORECASE):
                 raise DiagnosisError(f"{name}: the reduced model's fit failed on this record "
                                      f"({int((~valid).sum())} samples not numbers): refused") from None
+            if not ours:
+                raise          # a fault of the method, not of the record: not dressed up as a refusal
             raise DiagnosisError(msg if msg.startswith(name) else f"{name}: {msg}") from None
         if not (np.isfinite(getattr(fr, "noise_rad", np.nan)) and getattr(fr, "noise_rad", 0.0) > 0):
             raise DiagnosisError(f"{name}: the record's noise floor could not be estimated (no valid "
