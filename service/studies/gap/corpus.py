@@ -137,7 +137,9 @@ def run(out, *, budget_s: float = 540.0, workers: int = 2, variants=VARIANTS, si
     """Diagnose what is not yet on disk, for at most ``budget_s`` [s], the groups in a shuffled
     order and each group's oracle, variants and sizes together (a stopped run has sampled every
     prototype, variant and size); returns the counts done."""
-    from ..common import pool_map
+    from concurrent.futures import FIRST_COMPLETED, wait
+
+    from ...processes import process_pool
 
     out = Path(out)
     jobs = json.loads((out / "corpus.json").read_text())["jobs"]
@@ -150,17 +152,23 @@ def run(out, *, budget_s: float = 540.0, workers: int = 2, variants=VARIANTS, si
         key = (j["prototype"], j["group"])
         tasks += [("oracle", j, 0)] if key not in oracle else []
         tasks += [(v, j, n) for n in sizes for v in variants if (*key, n) not in have[v]]
-    for k in range(0, len(tasks), workers):
-        if time.perf_counter() - t0 > budget_s:
-            break
-        for kind, r in pool_map(_task, tasks[k:k + workers], workers):
-            name = "oracle.jsonl" if kind == "oracle" else f"rows_{kind}.jsonl"
-            with (out / name).open("a") as f:
-                f.write(json.dumps(r, default=float) + "\n")
+    # one pool for the chunk, ``workers`` tasks in flight; no new task after ``budget_s``
+    started = 0
+    with process_pool(max(1, workers), start_method=None) as ex:
+        running = set()
+        while running or (started < len(tasks) and time.perf_counter() - t0 <= budget_s):
+            while len(running) < workers and started < len(tasks) and time.perf_counter() - t0 <= budget_s:
+                running.add(ex.submit(_task, tasks[started]))
+                started += 1
+            done, running = wait(running, return_when=FIRST_COMPLETED)
+            for fut in done:
+                kind, r = fut.result()
+                name = "oracle.jsonl" if kind == "oracle" else f"rows_{kind}.jsonl"
+                with (out / name).open("a") as f:
+                    f.write(json.dumps(r, default=float) + "\n")
     return {v: len(_read(out, f"rows_{v}.jsonl")) for v in variants} | {"groups": len(jobs),
                                                                          "oracle": len(_read(out, "oracle.jsonl")),
-                                                                         "left": max(len(tasks) - k - workers, 0)
-                                                                         if tasks else 0}
+                                                                         "left": len(tasks) - started}
 
 
 def rows(out, variant: str) -> list:
