@@ -39,7 +39,7 @@ __all__ = ["diagnose", "DiagnosisError"]
 
 def diagnose(captures, breaker: Breaker, operation: str, *, effects=None, seed: int = 1,
              fitter=None, next_measurements: bool = True, strengths: dict | None = None,
-             features: bool = False) -> dict:
+             features: bool = False, features_only: bool = False) -> dict:
     """Diagnose the sim-to-real gap of one breaker from its captures of one operation.
 
     Parameters
@@ -61,6 +61,9 @@ def diagnose(captures, breaker: Breaker, operation: str, *, effects=None, seed: 
         catalogue's REFERENCE_STRENGTHS): the scale of the fits and of the ``absorbed`` check.
     features : bool
         Also return every hypothesis's features (``features.collect``) as ``features``.
+    features_only : bool
+        Stop after the features (the gap corpus: what the scorer is trained on); returns
+        ``{"features", "stages_s"}`` only.
 
     Returns
     -------
@@ -77,6 +80,11 @@ def diagnose(captures, breaker: Breaker, operation: str, *, effects=None, seed: 
         raise DiagnosisError(f"none of the given effects acts on an {operation} operation")
     windows = prepare(list(captures), breaker, operation, fitter=fitter, seed=seed)
     try:
+        if features_only:
+            t1 = time.perf_counter()
+            scores = score(windows, catalogue)
+            return {"features": scores.features, "left_out": list(getattr(windows, "left_out", []) or []),
+                    "stages_s": {"prepare": t1 - t0, "evidence": time.perf_counter() - t1}}
         return _diagnose(windows, catalogue, strengths, next_measurements, t0, time.perf_counter() - t0,
                          features)
     except (ArithmeticError, np.linalg.LinAlgError) as exc:

@@ -97,7 +97,7 @@ def diagnose_job(task) -> dict:
     t0 = time.perf_counter()
     caps, row["bow_delta_chi2"] = _captures(job, variant, breaker, n)
     try:
-        r = diagnose(caps, breaker, job["operation"], next_measurements=False, features=True)
+        r = diagnose(caps, breaker, job["operation"], next_measurements=False, features_only=True)
     except DiagnosisError as exc:
         row["error"] = str(exc)
     except (ArithmeticError, ValueError, np.linalg.LinAlgError, RuntimeError) as exc:
@@ -147,11 +147,13 @@ def run(out, *, budget_s: float = 540.0, workers: int = 2, variants=VARIANTS, si
     have = {v: _read(out, f"rows_{v}.jsonl") for v in variants}
     oracle = {(k[0], k[1]) for k in _read(out, "oracle.jsonl")}
     tasks = []
-    for i in np.random.default_rng(42).permutation(len(jobs)):
-        j = jobs[int(i)]
-        key = (j["prototype"], j["group"])
-        tasks += [("oracle", j, 0)] if key not in oracle else []
-        tasks += [(v, j, n) for n in sizes for v in variants if (*key, n) not in have[v]]
+    order = [jobs[int(i)] for i in np.random.default_rng(42).permutation(len(jobs))]
+    for n in sizes:          # every group on its first captures before any on all of them
+        for j in order:
+            key = (j["prototype"], j["group"])
+            if n == sizes[0] and key not in oracle:
+                tasks.append(("oracle", j, 0))
+            tasks += [(v, j, n) for v in variants if (*key, n) not in have[v]]
     # one pool for the chunk, ``workers`` tasks in flight; no new task after ``budget_s``
     started = 0
     with process_pool(max(1, workers), start_method=None) as ex:
