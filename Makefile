@@ -39,10 +39,10 @@ test: $(FULL)
 	$(PY) -m pytest -q -n $(PYTEST_N) $(PYTEST_ARGS)
 
 # The inner loop: the core lane alone (no PostgreSQL, Redis, browser or shared-data lane; no
-# long study or 10,000-operation checks). `make test` runs them all.
+# long study, end-to-end or 10,000-operation checks). `make test` runs them all.
 check: $(FULL)
 	HVCB_TEST_POSTGRES_URL= HVCB_TEST_REDIS_URL= HVCB_CHROMIUM=/nonexistent HVCB_SHARED_DIR=/nonexistent \
-	  $(PY) -m pytest -q -n $(PYTEST_N) -m "not slow and not history10k" $(PYTEST_ARGS)
+	  $(PY) -m pytest -q -n $(PYTEST_N) -m "not slow and not history10k and not integration" $(PYTEST_ARGS)
 
 # The README's and docs' screenshots, taken by the browser tests from the demo's running chain.
 screenshots: $(FULL)
