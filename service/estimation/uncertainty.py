@@ -5,10 +5,11 @@ leaves in motion, with its correlation: Σ is the Toeplitz autocovariance of an 
 model of that residual (the "AR-whitened residual"), of order p chosen by Schwarz's criterion
 (BIC) up to min(20, n/10), fitted by Yule–Walker (Levinson–Durbin). An AR(p) with p ≥ 2 follows
 the damped ringing of a torsional mode as well as a slow misfit, which a Bartlett-weighted
-Newey–West sum with Andrews' AR(1) bandwidth does not (bench/interval_coverage.py compares both;
+Newey–West sum with Andrews' AR(1) bandwidth does not (bench/interval_methods.py compares both;
 docs/estimation.md). A residual of white noise selects p = 0, Σ = σ²I: the classical σ²(JᵀJ)⁻¹,
 whose σ from the idle samples stays the floor of each standard error: where the model fits to the
-noise the interval is as before.
+noise the interval is as before. The fit hands it the residual less its smooth, repeating part
+(service/estimation/model_bias.py): the interval stands for what varies between operations.
 
 - G. Schwarz, "Estimating the dimension of a model", Ann. Statist. 6 (1978) 461–464.
 - W. J. den Haan, A. Levin, "A practitioner's guide to robust covariance matrix estimation",
