@@ -141,6 +141,17 @@ class FitRow(Base):
         None for a fit stored before it was recorded (its band is the idle samples' σ)."""
         return (self.result or {}).get("interval_noise")
 
+    @property
+    def model_bias(self) -> dict | None:
+        """The residual the fit repeats, apart from its interval (FitResult.model_bias); None for
+        a fit stored before it was recorded."""
+        return (self.result or {}).get("model_bias")
+
+    @property
+    def zero_rad(self) -> float | None:
+        """The transducer's zero the fit took off (FitResult.zero_rad) [rad]."""
+        return (self.result or {}).get("zero_rad")
+
 
 class DiagnosisRow(Base):
     """The sim-to-real gap diagnosis of one operation, computed on demand (one per operation)."""
