@@ -70,14 +70,17 @@ class DiagnosisResult(BaseModel):
     status: Literal["none", "named", "ambiguous", "unexplained"]
     answer: str = Field(description="the most probable hypothesis: effects joined by '+', 'none' or "
                                     "'outside_catalogue'")
-    answer_probability: float = Field(description="its calibrated probability; equals probabilities[answer]")
-    raw_probability: float | None = Field(None, description="the evidence's probability before calibration")
-    probabilities: dict[str, float] = Field(description="every hypothesis, renormalised around the answer's "
-                                                        "calibrated probability; 'none' is P(no effect); "
-                                                        "'unattributed': the share the calibration takes "
-                                                        "from the answer without naming an alternative")
+    answer_probability: float = Field(description="the learnt scorer's probability; equals probabilities[answer]")
+    raw_probability: float | None = Field(None, description="the same (kept for older readers)")
+    probabilities: dict[str, float] = Field(description="every hypothesis, by the learnt scorer "
+                                                        "(service/diagnosis/scorer.json); 'none' is P(no effect)")
+    set: list[str] = Field(default_factory=list, description="the 90 % set: hypotheses ('none', effect names, "
+                                                             "pairs as 'a+b', 'unexplained'), most probable first; "
+                                                             "conformal on simulated groups (calibration_note)")
+    set_members: list[dict] = Field(default_factory=list, description="[{hypothesis, probability, shrink}] per "
+                                                                      "member of the set")
     effects: list[str] = Field(default_factory=list, description="the named effects (status named)")
-    rivals: list[dict] = Field(default_factory=list, description="[{effect, probability}] at ≥ 5 %")
+    rivals: list[dict] = Field(default_factory=list, description="[{effect, probability}]: the set's members")
     absorbed: list[dict] = Field(default_factory=list, description="[{effect, strength, bias: {parameter: "
                                                                    "relative bias}}]")
     materiality: dict | None = Field(None, description="gap size and the fitted effects' strengths, intervals "

@@ -1,12 +1,9 @@
-"""Stage 4 — the one decision rule, from the evidence alone.
+"""Stage 6 — the decision, from the answer's set (``answer_set``) alone.
 
-1. The answer is the most probable hypothesis: ``none`` (P(no effect)), one effect, a pair, or
-   ``outside_catalogue``. Its raw probability goes through the calibration map
-   (``calibration``) and the table is renormalised around it: one number everywhere (a share
-   the calibration cannot attribute to an alternative is listed as ``unattributed``).
-2. It is stated (status ``none`` / ``named`` / ``unexplained``) when that probability reaches
-   ``P_NAME``; otherwise ``ambiguous`` with the rivals (every hypothesis above ``P_RIVAL``) and the
-   measurement that would separate the first two.
+1. The status is the set's: ``none`` / ``named`` / ``unexplained`` when a set of one is stated
+   (Learn then Test's threshold reached), else ``ambiguous``; the answer is the most probable
+   hypothesis and its probability the scorer's (``scorer``), with nothing renormalised.
+2. The rivals are the set's other members, with their probabilities.
 3. Size never changes the status: it is reported as ``materiality`` (report), with a flag
    ``material`` when the effect's unabsorbed part exceeds the sd of one block mean.
 4. Absorbed: a catalogued effect at the breaker's typical strength whose unabsorbed part could not
@@ -21,15 +18,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..mechanics.effects import REFERENCE_STRENGTHS, shape_defaults
-from .calibration import UNATTRIBUTED, calibrate, renormalise
+from .answer_set import AnswerSet
 from .data import STATE
 from .evidence import Evidence
 from .hypotheses import Fits, n_params, signature
-
-# The stated level: an answer is given when its probability reaches it (the issue's acceptance
-# reads calibration at ≥ 0.9; a lower level would state answers the calibration cannot back).
-P_NAME = 0.9
-P_RIVAL = 0.05     # rivals listed in an ambiguous answer: a 1-in-20 alternative is worth a measurement
 
 
 @dataclass
@@ -41,10 +33,11 @@ class Decision:
     absorbed: list
     gap_sigma: float
     answer: str = "none"
-    answer_probability: float = 0.0      # calibrated
-    raw_probability: float = 0.0         # the evidence's
-    probabilities: dict = None           # renormalised around the calibrated answer
-    calibration: str = "identity"
+    answer_probability: float = 0.0      # the scorer's
+    raw_probability: float = 0.0         # the same (kept for the older readers of the result)
+    probabilities: dict = None
+    calibration: str = "scorer"
+    set: AnswerSet = None
 
 
 def gap_sigma(chi2: float, n: int, block: float) -> float:
@@ -53,23 +46,17 @@ def gap_sigma(chi2: float, n: int, block: float) -> float:
     return float(np.sqrt(max(chi2 / n - 1.0, 0.0) / block))
 
 
-def decide(fits: Fits, ev: Evidence, catalogue, strengths=None) -> Decision:
+def decide(fits: Fits, ev: Evidence, aset: AnswerSet, catalogue, strengths=None) -> Decision:
     hyps = fits.hypotheses
     g0 = gap_sigma(hyps["none"].chi2 / ev.dispersion, ev.n, fits.windows.block)
     absorbed = absorbed_effects(fits, catalogue, ev, strengths)
-    top, p_raw = ev.ranked()[0]
-    p_cal, method = calibrate(p_raw)
-    probs = renormalise(ev.probabilities, top, p_cal)
-    ranked = sorted(((k, p) for k, p in probs.items() if k != UNATTRIBUTED), key=lambda kv: -kv[1])
-    rivals = [{"effect": k, "probability": p} for k, p in ranked if p >= P_RIVAL][:4]
-    h = hyps[top]
-    if p_cal >= P_NAME:
-        status = {"none": "none", "outside_catalogue": "unexplained"}.get(top, "named")
-        effects = list(h.effects) if status == "named" else []
-        rivals = rivals[1:]
-    else:
-        status, effects = "ambiguous", []
-    return Decision(status, top, effects, rivals, absorbed, g0, top, p_cal, p_raw, probs, method)
+    top = aset.top
+    rivals = [{"effect": k, "probability": aset.probabilities[k]} for k in aset.members if k != top]
+    effects = list(top.split("+")) if aset.status == "named" else []
+    if not aset.named:
+        rivals = [{"effect": k, "probability": aset.probabilities[k]} for k in aset.members]
+    return Decision(aset.status, top, effects, rivals, absorbed, g0, top, aset.probability, aset.probability,
+                    aset.probabilities, "scorer", aset)
 
 
 def absorbed_effects(fits: Fits, catalogue, ev: Evidence, strengths=None):

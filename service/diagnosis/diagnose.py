@@ -1,15 +1,17 @@
 """``diagnose``: the gap diagnosis of one breaker from N captures of one operation.
 
-A one-way pipeline, one module per stage:
+A one-way pipeline, one module per stage, each taking the last one's result:
 
-1. ``windows``    the captures' data: valid windows, noise, reduced fit, state Jacobian;
-2. ``predictive`` the evidence, the capture as its unit: each hypothesis (none, each family's
-                  subspace, pairs, a shared discrepancy) scored by leave-one-capture-out predictive
-                  density, combined by pseudo-BMA+;
-3. ``hypotheses`` the nonlinear refit of the leading hypotheses only, to report how far the gap
-                  shrinks (``evidence``: the noise model's figures beside the weights);
-4. ``decision``   the one rule: state what reaches P_NAME (calibrated), else ambiguous;
-5. ``report``     the JSON-ready result (+ ``measurement``: the recording that would decide).
+1. ``windows``     prepare: the captures' valid windows, noise, reduced fit, state Jacobian;
+2. ``predictive``  the evidence, the capture as its unit: each hypothesis (none, each family's
+   + ``features`` subspace, every pair, a shared discrepancy) scored by leave-one-capture-out
+                   predictive density, and every hypothesis's features from it;
+3. ``scorer``      the learnt scorer: every hypothesis's probability from its features;
+4. ``answer_set``  the 90 % set (conformal) and the name (Learn then Test);
+5. ``linearised``  the nonlinear refit of the set's members only, to report how far the gap
+                   shrinks with each (``evidence``: the noise model's figures);
+6. ``decision``    the status from the set; ``report``: the JSON-ready result (+ ``measurement``:
+                   the recording that would decide).
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ import numpy as np
 
 from ..mechanics.breaker import Breaker
 from ..mechanics.effects import EFFECT_NAMES
+from .answer_set import answer_set
 from .decision import decide
 from .errors import DiagnosisError
 from .evidence import evidence
@@ -27,14 +30,16 @@ from .hypotheses import catalogue_for
 from .linearised import fit_reported, holdout_shrink
 from .predictive import score
 from .measurement import next_measurement
-from .report import build
+from .report import build, message, set_report
+from .scorer import OUTSIDE, shipped
 from .windows import prepare
 
 __all__ = ["diagnose", "DiagnosisError"]
 
 
 def diagnose(captures, breaker: Breaker, operation: str, *, effects=None, seed: int = 1,
-             fitter=None, next_measurements: bool = True, strengths: dict | None = None) -> dict:
+             fitter=None, next_measurements: bool = True, strengths: dict | None = None,
+             features: bool = False, features_only: bool = False) -> dict:
     """Diagnose the sim-to-real gap of one breaker from its captures of one operation.
 
     Parameters
@@ -54,6 +59,11 @@ def diagnose(captures, breaker: Breaker, operation: str, *, effects=None, seed: 
     strengths : dict, optional
         The breaker's typical effect strengths (its breaker file's ``[effects]``; default the
         catalogue's REFERENCE_STRENGTHS): the scale of the fits and of the ``absorbed`` check.
+    features : bool
+        Also return every hypothesis's features (``features.collect``) as ``features``.
+    features_only : bool
+        Stop after the features (the gap corpus: what the scorer is trained on); returns
+        ``{"features", "stages_s"}`` only.
 
     Returns
     -------
@@ -70,27 +80,45 @@ def diagnose(captures, breaker: Breaker, operation: str, *, effects=None, seed: 
         raise DiagnosisError(f"none of the given effects acts on an {operation} operation")
     windows = prepare(list(captures), breaker, operation, fitter=fitter, seed=seed)
     try:
-        return _diagnose(windows, catalogue, strengths, next_measurements, t0, time.perf_counter() - t0)
-    except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:
-        # a numerical failure: said in words naming the records and what failed where, never
-        # the library's message (issue 42 item 5: the former words blamed the records' numbers
-        # for any failure, though the non-number was made inside the method)
+        if features_only:
+            t1 = time.perf_counter()
+            scores = score(windows, catalogue)
+            return {"features": scores.features, "left_out": list(getattr(windows, "left_out", []) or []),
+                    "stages_s": {"prepare": t1 - t0, "evidence": time.perf_counter() - t1}}
+        return _diagnose(windows, catalogue, strengths, next_measurements, t0, time.perf_counter() - t0,
+                         features)
+    except (ArithmeticError, np.linalg.LinAlgError) as exc:
+        # a numerical failure (a singular system, an overflow): said in words naming the records
+        # and what failed where. Any other error is a fault of the method and is not dressed up
+        # as a refusal (issue 48 item 6)
         raise DiagnosisError(refusal(windows, exc)) from None
 
 
-def _diagnose(windows, catalogue, strengths, next_measurements, t0, t_prepare):
+REFIT_MEMBERS = 3   # the set's members holding effects refitted to say how far the gap shrinks
+
+
+def _diagnose(windows, catalogue, strengths, next_measurements, t0, t_prepare, features=False):
     t1 = time.perf_counter()
     scores = score(windows, catalogue)
     t2 = time.perf_counter()
-    fits = fit_reported(windows, scores, rivals=2 if next_measurements else 1)
+    sc = shipped()
+    probs = sc.predict_proba(scores.features)
+    aset = answer_set(probs, sc.qhat, sc.lam, sc.alpha)
+    scores.weights = probs
+    members = [k for k in aset.members if k not in ("none", OUTSIDE)][:REFIT_MEMBERS]
+    fits = fit_reported(windows, scores, names=members)
     t3 = time.perf_counter()
     ev = evidence(fits, scores)
-    dec = decide(fits, ev, catalogue, strengths)
+    dec = decide(fits, ev, aset, catalogue, strengths)
     nm = next_measurement(fits, dec.rivals) if (next_measurements and dec.status == "ambiguous") else []
     ho = holdout_shrink(windows, fits.hypotheses[dec.hypothesis]) if dec.status == "named" else None
     result = build(fits, ev, dec, nm, ho, time.perf_counter() - t0, scores)
+    result.update(set_report(aset, fits, scores.features, sc))
+    result["message"] = message(result)
     result["stages_s"] = {"prepare": t_prepare, "evidence": t2 - t1, "report_refit": t3 - t2,
                           "rest": time.perf_counter() - t3}
+    if features:
+        result["features"] = scores.features
     return result
 
 

@@ -52,8 +52,10 @@ class Evidence:
 
     @property
     def bic(self) -> dict:
-        """−2 ln evidence (without the prior), the scale of a BIC."""
-        return {k: float(-2.0 * (v - np.log(self.prior[k]))) for k, v in self.log_evidence.items()}
+        """−2 × the log evidence (with the predictive scores: −2 elpd, which carry no prior), the
+        scale of a BIC."""
+        return {k: float(-2.0 * (v - (np.log(self.prior[k]) if k in self.prior else 0.0)))
+                for k, v in self.log_evidence.items()}
 
     def ranked(self):
         return sorted(self.probabilities.items(), key=lambda kv: -kv[1])
@@ -76,7 +78,7 @@ def evidence(fits: Fits, scores=None) -> Evidence:
     ev = _fits_evidence(fits)
     if scores is None:
         return ev
-    return Evidence(dict(scores.elpd), dict(scores.prior), dict(scores.weights), ev.dispersion, ev.rho, ev.s2,
+    return Evidence(dict(scores.elpd), {}, dict(scores.weights), ev.dispersion, ev.rho, ev.s2,
                     ev.n, ev.n_eff, ev.log_bf_discrepancy)
 
 

@@ -29,6 +29,7 @@ from scipy.optimize import least_squares
 from ..mechanics.effects import EFFECT_NAMES, OPERATIONS, PHYSICAL_UPPER as FIT_UPPER, REFERENCE_STRENGTHS as REALISTIC
 from ..mechanics.effects import SHAPES, SIGNED, shape_bounds, shape_defaults
 from .data import design_state, model_curve, state_bounds
+from .parallel import pmap
 from .windows import Windows, linearise, tau_span
 
 SCREEN_NFEV = 8     # evaluations per deterministic start
@@ -156,7 +157,7 @@ def fit_hypothesis(windows: Windows, effects: tuple, starts, *, subset=None,
 
     def fun(z):
         eff = _unpack(z, effects, sl)
-        return np.concatenate([cw.project_out(cw.r - signature(cw, op, br, eff)) for cw in caps])
+        return np.concatenate(pmap(lambda cw: cw.project_out(cw.r - signature(cw, op, br, eff)), caps))
 
     best = None
     for z0 in starts:
@@ -168,7 +169,7 @@ def fit_hypothesis(windows: Windows, effects: tuple, starts, *, subset=None,
     if len(starts) > 1:
         best = least_squares(fun, best.x, bounds=(lo, hi), x_scale=scale, max_nfev=refine_nfev, diff_step=1e-4)
     eff = _unpack(best.x, effects, sl)
-    sigs = [signature(cw, op, br, eff) for cw in caps]
+    sigs = pmap(lambda cw: signature(cw, op, br, eff), caps)
     per = [float(np.sum(cw.project_out(cw.r - s) ** 2)) for cw, s in zip(caps, sigs)]
     phi = {e: (s, np.array(sh, float)) for e, s, sh in eff}
     h = HypothesisFit(tuple(effects), phi, int(len(lo)), float(sum(per)), per, sigs, captures=list(caps))
@@ -208,12 +209,14 @@ def refine_exact(windows: Windows, h: HypothesisFit, *, max_nfev: int = EXACT_NF
 
     def fun(z):
         eff = _unpack(z[:ke], effects, sl)
-        out = []
-        for i, cw in enumerate(caps):
+
+        def one(i):
+            cw = caps[i]
             x = z[ke + i * p: ke + (i + 1) * p]
             r = (cw.data.y - model_curve(x, cw.data, br, op, eff)) * cw.data.weight
-            out.append(np.where(np.isfinite(r), r, 1e3))
-        return np.concatenate(out)
+            return np.where(np.isfinite(r), r, 1e3)
+
+        return np.concatenate(pmap(one, range(len(caps))))
 
     z0 = np.clip(z0, lo, hi)
     res = least_squares(fun, z0, bounds=(lo, hi), x_scale=scale, max_nfev=max_nfev, diff_step=1e-5,

@@ -23,6 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from .data import model_curve
+from .parallel import pmap
 from .hypotheses import (
     REFINE_NFEV,
     Fits,
@@ -104,18 +105,18 @@ def gauss_newton(windows, effects: tuple, z0, caps, *, iters: int = 3):
     z = np.clip(np.asarray(z0, float), lo, hi)
     xs = [np.asarray(cw.x, float).copy() for cw in caps]
     bounds = [_state_bounds(cw.x, op) for cw in caps]
-    ev = [_evaluate(cw, x, op, br, unpack(z)) for cw, x in zip(caps, xs)]
+    ev = pmap(lambda cx: _evaluate(cx[0], cx[1], op, br, unpack(z)), list(zip(caps, xs)))
     cost = sum(float(e[2] @ e[2]) for e in ev)
     lam = LM_LAMBDA
     jac = None
     for it in range(max(iters, 0)):
-        Js, Gs, Ns = [], [], []
-        for cw, x, (r, S, _) in zip(caps, xs, ev):
+        def jacobians(item, it=it, z=z):
+            cw, x, (r, S, _) = item
             m0 = cw.data.y - r / cw.data.weight
             J = cw.J if REUSE_J and it == 0 and cw.J.shape[1] == x.size else _state_jac(cw, x, op, br, unpack(z), m0)
-            Js.append(J)
-            Gs.append(_effect_jac(cw, x, op, br, z, unpack, scale, m0, lo, hi))
-            Ns.append(np.column_stack([J, S]))
+            return J, _effect_jac(cw, x, op, br, z, unpack, scale, m0, lo, hi), np.column_stack([J, S])
+
+        Js, Gs, Ns = (list(v) for v in zip(*pmap(jacobians, list(zip(caps, xs, ev)))))
         jac = (Js, Gs)
         A = np.zeros((z.size, z.size))
         b = np.zeros(z.size)
@@ -141,7 +142,7 @@ def gauss_newton(windows, effects: tuple, z0, caps, *, iters: int = 3):
             dz = zn - z
             xn = [np.clip(x + alpha * (Np @ (r - G @ (dz / alpha)))[: x.size], *bd)
                   for x, Np, G, (r, _, _), bd in zip(xs, pinv, Gs, ev, bounds)]
-            evn = [_evaluate(cw, x, op, br, unpack(zn)) for cw, x in zip(caps, xn)]
+            evn = pmap(lambda cx, zn=zn: _evaluate(cx[0], cx[1], op, br, unpack(zn)), list(zip(caps, xn)))
             cn = sum(float(e[2] @ e[2]) for e in evn)
             if cn < cost:
                 z, xs, ev, cost = zn, xn, evn, cn
@@ -198,13 +199,14 @@ def holdout_shrink(windows, h):
     lo, hi, scale, sl = _layout(h.effects)
     z = np.concatenate([np.concatenate([[h.phi[e][0]], h.phi[e][1]]) for e in h.effects])
     unpack = lambda v: _unpack(v, h.effects, sl)
-    parts = []
-    for cw, s in zip(h.captures, h.signatures):
+
+    def part(item):
+        cw, s = item
         m0 = cw.data.y - (cw.r - s) / cw.data.weight       # the model with the effect
         G = _effect_jac(cw, cw.x, op, br, z, unpack, scale, m0, lo, hi)
-        PG = cw.project_out(G)
-        e = cw.project_out(cw.r - s)
-        parts.append((PG, e, cw))
+        return cw.project_out(G), cw.project_out(cw.r - s), cw
+
+    parts = pmap(part, list(zip(h.captures, h.signatures)))
     # a parameter the fit left on one of its bounds stays there (the active set): the others'
     # step is solved for the free ones only
     span = np.maximum(hi - lo, 1e-300)
@@ -230,14 +232,15 @@ REPORT_GN_ITERS = 4   # Gauss–Newton steps of the reported answer's refit (``l
 REPORT_P = 0.05   # a hypothesis below this predictive weight is neither reported nor a rival worth refitting
 
 
-def fit_reported(windows, scores, rivals: int = 1):
+def fit_reported(windows, scores, rivals: int = 1, names=None):
     """The nonlinear joint refit of what is reported: ``none``, the ``rivals`` most probable
     hypotheses holding catalogued effects (by the predictive weights) and ``outside`` on the
     best of them. The evidence is not taken from these fits (``predictive`` gives it); they say
     how far the gap shrinks and what the effect does to the parameters."""
     hyps = {"none": none_fit(windows)}
-    ranked = [k for k, p in scores.ranked() if k not in ("none", "outside_catalogue") and p >= REPORT_P]
-    for name in ranked[:rivals]:
+    if names is None:
+        names = [k for k, p in scores.ranked() if k not in ("none", "outside_catalogue") and p >= REPORT_P][:rivals]
+    for name in names:
         effects = tuple(name.split("+"))
         h = getattr(scores, "exact", {}).get(name)
         if h is None:

@@ -33,10 +33,11 @@ only soaks up misfit, or vibration that does not repeat, does not predict the he
 With one capture, the units are its ~2 ms stretches (``UNIT_S``), and the result says one capture
 cannot decide between close rivals.
 
-Combination: pseudo-BMA+ (Yao, Vehtari, Simpson & Gelman 2018, Bayesian Analysis 13:917, §3.2),
-the points being captures: weights averaged over Bayesian-bootstrap draws α ~ Dirichlet(1, …, 1)
-of exp(U·Σ_j α_j lpd_Hj), U units. The spread of the per-capture scores carries the real noise,
-coloured or not: a hypothesis that wins on three captures and loses on two is not stated.
+What this stage leaves is every hypothesis's features (``features.collect``: its elpd per unit,
+its held-out share of the gap per capture, where in the motion it acts), not probabilities: the
+learnt scorer (``scorer``) turns those into probabilities (issue 48; the pseudo-BMA+ softmax of
+these sums, its Occam term and prior, which stated wrong answers at ≥ 0.99, are gone). The Occam
+factor below only chooses which outside-the-catalogue alternative and which families are refitted.
 """
 
 from __future__ import annotations
@@ -49,6 +50,7 @@ import numpy as np
 from ..mechanics.effects import REFERENCE_STRENGTHS as REALISTIC
 from .hypotheses import family_starts, signature
 from .linearised import exact_fit, member_from_pair
+from .parallel import pmap
 from .noise import AR_ORDER, NOISE_KNOT_S, _orth, _prewhiten, spline_basis, yule_walker  # noqa: F401 (re-exported)
 from .windows import Windows
 
@@ -62,14 +64,14 @@ EXACT_TOP = 3          # effect hypotheses refitted jointly (and scored at their
 REFINE_TOP = 3         # families refitted nonlinearly about their best point
 REFINE_NFEV = 12       # least-squares evaluations of that refit
 SEGMENT = 8            # columns of a local discrepancy (~16 ms), every half of it
-BOOT = 4000            # Bayesian-bootstrap draws of pseudo-BMA+
 SEED = 36
 
 
 @dataclass
 class Scores:
     """Per hypothesis: its basis dimension, per-unit LOO log predictive densities (relative to
-    ``none``), elpd (their sum), prior and pseudo-BMA+ weight; the units' kind and count."""
+    ``none``), elpd (their sum); the units' kind and count; ``features`` of every hypothesis and
+    of the group; ``weights``: the scorer's probabilities, set by ``diagnose``."""
 
     names: list
     dim: dict
@@ -83,6 +85,7 @@ class Scores:
     linear_shrink: dict = field(default_factory=dict)
     refined: dict = field(default_factory=dict)    # family -> its nonlinear HypothesisFit
     exact: dict = field(default_factory=dict)      # hypothesis -> its exact joint refit
+    features: dict = field(default_factory=dict)   # ``features.collect``: every hypothesis's and the group's
 
     def ranked(self):
         return sorted(self.weights.items(), key=lambda kv: -kv[1])
@@ -156,12 +159,13 @@ def capture_bases(windows: Windows, catalogue, filters=None) -> list:
     (``filters``: the noise filters to use, e.g. those of the reduced fit's residual, so that
     densities at another nuisance profile compare)."""
     op, br = windows.operation, windows.breaker
-    times = [motion_time(cw, br, op) for cw in windows.captures]
+    times = pmap(lambda cw: motion_time(cw, br, op), windows.captures)
     t_ref = float(np.median([t90 for _, t90 in times]))
     lo = min(float(tm[0]) * t_ref / t90 for tm, t90 in times)
     hi = max(float(tm[-1]) * t_ref / t90 for tm, t90 in times) + 1e-9
-    out = []
-    for i, (cw, (tm, t90)) in enumerate(zip(windows.captures, times)):
+
+    def one(i):
+        cw, (tm, t90) = windows.captures[i], times[i]
         f, ar = _prewhiten(cw) if filters is None else filters[i]
         Qw = _orth(f(cw.Q))
         P = (lambda X, Qw=Qw: X - Qw @ (Qw.T @ X))
@@ -176,8 +180,9 @@ def capture_bases(windows: Windows, catalogue, filters=None) -> list:
         u = tm * t_ref / t90
         D = spline_basis(u, lo, hi, KNOT_S) * cw.data.weight[:, None]
         cols["__disc__"] = P(f(D))
-        out.append(_Cap(P(f(cw.r[:, None]))[:, 0], cols, u, ar, f, Qw))
-    return out
+        return _Cap(P(f(cw.r[:, None]))[:, 0], cols, u, ar, f, Qw)
+
+    return pmap(one, range(len(windows.captures)))
 
 
 def point_gain(caps, effect: str) -> float:
@@ -247,10 +252,13 @@ def local_subspace(windows, caps, effect: str, st: float, sh):
             v = sh.copy()
             v[j] = np.clip(v[j] + sg * d, lo[j], hi[j])
             pts.append((st, v))
-    for c, cw in zip(caps, windows.captures):
+
+    def one(item):
+        c, cw = item
         sigs = [signature(cw, op, br, [(effect, float(a), np.asarray(b, float))]) for a, b in pts]
-        sigs = [np.where(np.abs(x) < 1e3, x, 0.0) for x in sigs]
-        c.cols[effect] = c.columns(sigs)
+        c.cols[effect] = c.columns([np.where(np.abs(x) < 1e3, x, 0.0) for x in sigs])
+
+    pmap(one, list(zip(caps, windows.captures)))
     family_subspace(caps, effect)
 
 
@@ -353,41 +361,12 @@ def loo_lpd(units, names) -> np.ndarray:
     return out
 
 
-def linear_shrink(caps, names) -> float:
-    """1 − gap_after/gap_before of the shared linear fit on all captures (gap² = χ² − n)."""
-    X = [np.column_stack([c.cols[n] for n in names]) for c in caps]
-    A = sum(x.T @ x for x in X)
-    b = sum(x.T @ c.r for x, c in zip(X, caps))
-    beta = np.linalg.lstsq(A, b, rcond=None)[0]
-    n = sum(c.r.size for c in caps)
-    before = sum(float(c.r @ c.r) for c in caps)
-    after = sum(float(np.sum((c.r - x @ beta) ** 2)) for x, c in zip(X, caps))
-    g0, g1 = max(before - n, 0.0), max(after - n, 0.0)
-    return 0.0 if g0 <= 0 else float(1.0 - np.sqrt(g1 / g0))
-
-
 def occam(k: int, rows: float) -> float:
     """The Occam factor [nats] of k shared coefficients: ½ k ln(rows of one unit), Schwarz's,
     counted in one unit's blocks: a shape shared by the captures must pay for itself in the
     evidence of a single capture (LOO alone charges it almost nothing, so every useless family
     would keep a share near its prior and a healthy group could never be stated ``none``)."""
     return 0.5 * k * float(np.log(max(rows, 2.0)))
-
-
-def pseudo_bma_plus(lpd: dict, prior: dict, seed: int = SEED) -> dict:
-    """pseudo-BMA+ weights over the units (Bayesian bootstrap), times the prior."""
-    names = list(lpd)
-    L = np.array([lpd[k] for k in names])               # H × U
-    L = np.where(np.isfinite(L), L, -1e12)
-    U = L.shape[1]
-    rng = np.random.default_rng(seed)
-    alpha = rng.dirichlet(np.ones(U), size=BOOT)        # B × U
-    z = U * (alpha @ L.T) + np.log([prior[k] for k in names])[None, :]
-    z -= z.max(axis=1, keepdims=True)
-    w = np.exp(z)
-    w /= w.sum(axis=1, keepdims=True)
-    m = w.mean(axis=0)
-    return {k: float(v) for k, v in zip(names, m)}
 
 
 def score(windows: Windows, catalogue) -> Scores:
@@ -470,21 +449,11 @@ def score(windows: Windows, catalogue) -> Scores:
         n_alt += o2[3]
     hyps["outside_catalogue"] = ("__disc__",)
     lpd["outside_catalogue"] = best_out
-    F = max(len(singles), 1)
-    prior = {k: (1.0 / F if len(v) == 2 and k != "outside_catalogue" else 1.0) for k, v in hyps.items()}
-    z = sum(prior.values())
-    prior = {k: v / z for k, v in prior.items()}
     dims["outside_catalogue"] = best_k
-    # the Occam factor of each hypothesis' shared coefficients enters as a prior weight
-    logp = {k: np.log(prior[k]) - occam(dims[k], mean_rows) for k in hyps}
-    logp["outside_catalogue"] -= np.log(n_alt)
-    m = max(logp.values())
-    prior_eff = {k: float(np.exp(v - m)) for k, v in logp.items()}
-    weights = pseudo_bma_plus(lpd, prior_eff)
-    shrink = {}
-    for k, v in hyps.items():
-        if v and len(caps) and weights[k] >= 0.01:
-            shrink[k] = linear_shrink(caps, v)
-    return Scores(list(hyps), dims,
-                  lpd, {k: float(np.sum(v)) for k, v in lpd.items()}, prior, weights, kind, len(units),
-                  [c.ar for c in caps], shrink, refined, exact)
+    # the probabilities are the learnt scorer's (``scorer``), from every hypothesis's features:
+    # no prior, Occam term or softmax of these sums here (issue 48 item 5)
+    from .features import collect
+
+    feats = collect(caps, units, lpd, dims, hyps, singles)
+    return Scores(list(hyps), dims, lpd, {k: float(np.sum(v)) for k, v in lpd.items()}, {}, {}, kind,
+                  len(units), [c.ar for c in caps], {}, refined, exact, feats)

@@ -123,16 +123,20 @@ def predictive_report(scores, dec: Decision) -> dict | None:
     of the first two with its standard error, and the linear fit's gap shrink."""
     if scores is None:
         return None
-    ranked = [k for k, _ in scores.ranked()]
+    hyp = scores.features["hypotheses"]
+    ranked = [k for k, _ in sorted(dec.probabilities.items(), key=lambda kv: -kv[1]) if k in hyp]
     a, b = ranked[0], ranked[1] if len(ranked) > 1 else ranked[0]
+    d = np.asarray(hyp[a]["lpd"], float) - np.asarray(hyp[b]["lpd"], float)
+    se = float(np.sqrt(d.size * np.var(d, ddof=1))) if d.size > 1 else float("inf")
     return {"units": scores.units, "n_units": scores.n_units,
-            "elpd": {k: float(v) for k, v in sorted(scores.elpd.items(), key=lambda kv: -kv[1])},
-            "per_unit": {k: [float(x) for x in scores.lpd[k]] for k in ranked[:3]},
-            "first_two": [a, b], "elpd_difference": float(scores.elpd[a] - scores.elpd[b]),
-            "elpd_difference_se": scores.se_difference(a, b) if a != b else 0.0,
-            "dimension": dict(scores.dim), "linear_shrink": dict(scores.linear_shrink),
+            "elpd": {k: float(hyp[k]["elpd"]) for k in sorted(hyp, key=lambda k: -hyp[k]["elpd"])},
+            "per_unit": {k: [float(x) for x in hyp[k]["lpd"]] for k in ranked[:3]},
+            "first_two": [a, b], "elpd_difference": float(hyp[a]["elpd"] - hyp[b]["elpd"]),
+            "elpd_difference_se": se if a != b else 0.0,
+            "dimension": {k: int(v["dim"]) for k, v in hyp.items()},
             "noise_ar": [{"coefficients": c, "innovation_sd": sd} for c, sd in scores.noise_ar],
-            "method": "leave-one-capture-out predictive density, pseudo-BMA+ (Yao et al. 2018)"}
+            "method": "leave-one-capture-out predictive density (the features), probabilities by the learnt "
+                      "scorer (service/diagnosis/scorer.py)"}
 
 
 def build(fits: Fits, ev: Evidence, dec: Decision, next_meas: list, holdout, runtime_s: float,
@@ -214,6 +218,52 @@ def build(fits: Fits, ev: Evidence, dec: Decision, next_meas: list, holdout, run
     return result
 
 
+def set_report(aset, fits, features: dict, scorer) -> dict:
+    """The answer's set for ``--json``, the API and the card: ``set`` (hypothesis labels, pairs
+    as ``a+b``, ``unexplained``), each member with its probability and how far the gap shrinks
+    with it (its refit's when refitted, else the shared linear fit's), the level, and one line
+    on how it was calibrated and on what."""
+    members = []
+    for k, lab in zip(aset.members, aset.labels):
+        h = fits.hypotheses.get(k)
+        if k == "none":
+            shrink, how = 0.0, "nothing added"
+        elif h is not None and h.effects and not h.outside:
+            shrink, how = _fit_shrink(fits, h), "its joint refit"
+        else:
+            f = features["hypotheses"].get(k, {})
+            shrink, how = f.get("shrink_all"), "the linear fit of its shapes"
+        members.append({"hypothesis": lab, "in_words": in_words(k), "probability": float(aset.probabilities[k]),
+                        "shrink": None if shrink is None else float(shrink), "shrink_from": how})
+    return {"set": aset.labels, "set_members": members, "set_level": aset.level,
+            "calibration_note": scorer_note(scorer), "calibration": "scorer"}
+
+
+def _fit_shrink(fits, h) -> float:
+    """1 − gap_after/gap_before of fit ``h`` against ``none`` (gap² = χ² − blocks)."""
+    n = fits.windows.n
+    g0 = max(fits.hypotheses["none"].chi2 - n, 0.0)
+    g1 = max(h.chi2 - n, 0.0)
+    return float(1.0 - np.sqrt(g1 / g0)) if g0 > 0 else 0.0
+
+
+def scorer_note(scorer) -> str:
+    """One line: how the set and the name were calibrated, and on what (the shipped scorer's
+    provenance and its held-out figures, ``heldout`` in ``scorer.json``)."""
+    pv = scorer.meta.get("provenance", {})
+    protos = ", ".join(p.upper() for p in pv.get("prototypes", [])) or "?"
+    kinds = ", ".join(pv.get("sensor_kinds", [])) or "?"
+    held = scorer.meta.get("heldout") or {}
+    cov = held.get("set_holds_truth_detectable")
+    covered = (f"; leaving each prototype out, the set held the truth on {cov['k']}/{cov['n']} groups with an "
+               f"effect" if cov else "")
+    name = ("a single answer is named only where Learn then Test bounds wrong names at 5 % (90 % confidence)"
+            if scorer.lam is not None else "no single answer is named: Learn then Test certified no threshold")
+    return (f"The {100 * (1 - scorer.alpha):.0f} % set is conformal (APS) on {pv.get('rows', '?')} simulated groups "
+            f"(prototypes {protos}; sensors {kinds}){covered}; {name}. Calibrated on simulations only, not on "
+            f"real breakers: see docs/gap-study.md.")
+
+
 def calibration_note(calibration: str) -> str:
     """One line: how the stated probabilities were calibrated and on what."""
     if calibration in (None, "", "identity"):
@@ -255,14 +305,31 @@ def _message(r: dict) -> str:
         at = f", largest in the {pk['phase'].replace('_', ' ')} phase" if pk["phase"] else ""
         return (f"A gap of {ratio:.2f}× the noise floor over {who} that no catalogued effect describes "
                 f"(outside the catalogue, probability {p:.2f}{at}).")
-    names = [x["effect"] for x in r["rivals"][:2]]
-    say = (f"Cannot decide between {in_words(names[0])} and {in_words(names[1])}" if len(names) == 2
-           else f"Cannot decide ({in_words(names[0])} at most)" if names else "Cannot decide")
     one = ONE_CAPTURE + " Record more operations." if n == 1 else ""
     nm = r.get("next_measurement") or []
     nxt = f" The recording that would decide: {nm[0]['measurement']}." if nm else ""
-    return (say + " (" + ", ".join(f"{in_words(x['effect'])} {x['probability']:.2f}" for x in r["rivals"])
-            + f") over {who}.{one}{nxt}")
+    return f"{one_of(r)} over {who}.{one}{nxt}"
+
+
+def one_of(r: dict) -> str:
+    """"One of X, Y (90 %)", each member with its probability and how far the gap shrinks with it."""
+    members = r.get("set_members") or [{"in_words": in_words(x["effect"]), "probability": x["probability"],
+                                        "shrink": None} for x in r.get("rivals", [])]
+    level = 100 * float(r.get("set_level", 0.9))
+
+    def one(m):
+        s = m.get("shrink")
+        sh = "" if s is None or m["in_words"] == in_words("none") else \
+            f", gap shrinks {min(100 * s, 100):.0f} %" if s < 1 else ", gap shrinks to the noise"
+        return f"{m['in_words']} ({m['probability']:.2f}{sh})"
+
+    if len(members) == 1:
+        return f"{one(members[0])} ({level:.0f} % set of one, not named)"
+    more = f" and {len(members) - SHOWN} more" if len(members) > SHOWN else ""
+    return f"One of {', '.join(one(m) for m in members[:SHOWN])}{more} ({level:.0f} %)"
+
+
+SHOWN = 5   # set members said in words; the rest are counted (all are in ``set``)
 
 
 def percent(v: float) -> str:
@@ -283,6 +350,8 @@ def format_report(result: dict) -> str:
     for ph in result["where"]:
         lines.append(f"  {ph['phase']:<18} {ph['t0_s'] * 1e3:7.1f}-{ph['t1_s'] * 1e3:7.1f} ms  "
                      f"{ph['gap_before']:5.3f} -> {ph['gap_after']:5.3f}")
+    if result.get("set"):
+        lines.append(f"set: {one_of(result)}")
     lines.append("probabilities:")
     for k, p in list(result["probabilities"].items())[:6]:
         lines.append(f"  {in_words(k):<52} {p:.3f}")

@@ -37,6 +37,7 @@ from .data import (
     window_data,
 )
 from .errors import DiagnosisError
+from .parallel import pmap
 
 BASE_NFEV = 30      # polish of the reduced model (least_squares evaluations)
 # τ, the onset delay the polish may move: −2…+5 ms about the trigger (a prototype's latch) or,
@@ -122,6 +123,8 @@ def prepare(captures, breaker: Breaker, operation: str, *, fitter=None, seed: in
             if not ours and re.search(r"\b(nans?|infs?|infinity)\b", msg, re.IGNORECASE):
                 raise DiagnosisError(f"{name}: the reduced model's fit failed on this record "
                                      f"({int((~valid).sum())} samples not numbers): refused") from None
+            if not ours:
+                raise          # a fault of the method, not of the record: not dressed up as a refusal
             raise DiagnosisError(msg if msg.startswith(name) else f"{name}: {msg}") from None
         if not (np.isfinite(getattr(fr, "noise_rad", np.nan)) and getattr(fr, "noise_rad", 0.0) > 0):
             raise DiagnosisError(f"{name}: the record's noise floor could not be estimated (no valid "
@@ -139,10 +142,10 @@ def prepare(captures, breaker: Breaker, operation: str, *, fitter=None, seed: in
         datas.append(data)
         starts.append(np.array([fr.parameters.get(k, design[k]) for k in STATE[operation]]
                                + [fr.onset_delay_s]))
+    lins = pmap(lambda dx: linearise(baseline(dx[1], dx[0], breaker, operation), dx[0], breaker, operation),
+                list(zip(datas, starts)))
     out, left_out = [], []
-    for data, x0 in zip(datas, starts):
-        x = baseline(x0, data, breaker, operation)
-        cw = linearise(x, data, breaker, operation)
+    for data, cw in zip(datas, lins):
         z = cw.project_out(cw.r)
         per_block = float(np.mean(z * z)) if z.size else 0.0
         if not np.isfinite(per_block) or per_block > FAILED_FIT:

@@ -114,21 +114,34 @@ def apply(capture, unit: SensorUnit, rng: np.random.Generator, *, stroke: float 
     holds what was applied."""
     y = np.asarray(capture.travel, float)
     fs = float(capture.sample_rate)
-    t = np.arange(y.size) / fs
     S = float(stroke) if stroke else float(np.nanmax(y) - np.nanmin(y)) or 1.0
     zero = unit.zero_rad + float(rng.normal(0.0, ZERO_OP_RAD))
-    read = unit.gain * (y + bow(y, unit, S)) + zero
     t_latch, t_impact = strikes(y, fs)
     applied = []
     for t0 in (t_latch, t_impact):
         for f, z in unit.modes:
             a = float(rng.uniform(*MODE_AMP_RAD)) * float(rng.choice((-1.0, 1.0)))
-            read = read + ringing(t, t0, f, z, a)
             applied.append({"t_s": t0, "freq_hz": f, "zeta": z, "amp_rad": a})
+    sensor = {"kind": "realistic", "zero_rad": zero, "gain": unit.gain, "bow": unit.bow, "skew": unit.skew,
+              "strikes": applied, "bits": unit.bits, "span_rad": list(unit.span), "stroke_rad": S,
+              "operation": operation}
+    read = reading(y, fs, sensor)
     out = adc(read, unit.bits, unit.span)
     meta = dict(getattr(capture, "meta", {}) or {})
-    meta["sensor"] = {"zero_rad": zero, "gain": unit.gain, "bow": unit.bow, "skew": unit.skew,
-                      "strikes": applied, "bits": unit.bits, "span_rad": list(unit.span),
-                      "clipped": int(np.sum((read <= unit.span[0]) | (read >= unit.span[1]))),
-                      "operation": operation}
+    sensor["clipped"] = int(np.sum((read <= unit.span[0]) | (read >= unit.span[1])))
+    meta["sensor"] = sensor
     return dataclasses.replace(capture, travel=out, meta=meta, travel_limits=tuple(unit.span))
+
+
+def reading(y, sample_rate: float, sensor: dict, *, with_bow: bool = True) -> np.ndarray:
+    """What the transducer of ``sensor`` (an applied capture's ``meta['sensor']``) reads for the
+    travel ``y`` [rad] (before the ADC): the same zero, gain, bow and strikes. ``with_bow``
+    False: the same reading without the bow (the oracle's test of whether the bow is
+    detectable)."""
+    y = np.asarray(y, float)
+    t = np.arange(y.size) / float(sample_rate)
+    unit = SensorUnit(sensor["zero_rad"], sensor["gain"], sensor["bow"] if with_bow else 0.0, sensor["skew"], ())
+    read = unit.gain * (y + bow(y, unit, sensor["stroke_rad"])) + sensor["zero_rad"]
+    for s in sensor["strikes"]:
+        read = read + ringing(t, s["t_s"], s["freq_hz"], s["zeta"], s["amp_rad"])
+    return read

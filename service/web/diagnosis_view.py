@@ -153,6 +153,11 @@ def view(r: dict | None) -> dict | None:
                  "bias_text": [f"{k} {percent(x)}" for k, x in (e.get("bias") or {}).items() if _num(x) is not None]}
                 for e in mat.get("effects") or [] if isinstance(e, dict)]
     names |= {m["effect"] for m in material}
+    members = [{"hypothesis": str(m.get("hypothesis", "?")), "probability": _num(m.get("probability")),
+                "shrink": _num(m.get("shrink"))} for m in r.get("set_members") or [] if isinstance(m, dict)]
+    for m in members:
+        m["name"] = "outside_catalogue" if m["hypothesis"] == "unexplained" else m["hypothesis"]
+    names |= {m["name"] for m in members}
     names |= {x for m in nxt for x in m["separates"]}
     for w in where:
         w["phase_words"] = w["phase"].replace("_", " ")
@@ -170,6 +175,7 @@ def view(r: dict | None) -> dict | None:
             "discrepancy": {"phase": peak.get("phase"), "t_ms": _num(peak.get("t_ms")), "mrad": _num(peak.get("mrad")),
                             "shape": disc.get("shape"), "log_bf": _num(disc.get("log_bayes_factor"))}
             if peak.get("phase") else None,
+            "set": members, "set_level": _num(r.get("set_level")),
             "rivals": rivals, "absorbed": absorbed, "far": far, "where": where, "bars": _bars(where),
             "params": _params(reduced, corrected), "next": nxt, "messages": messages,
             "captures": len(r["captures"]) if isinstance(r.get("captures"), list) else None}

@@ -26,15 +26,3 @@ def _make_capture(breaker, op, effects=Effects(), seed=101, **kw):
 def make_capture():
     return _make_capture
 
-
-@pytest.fixture(autouse=True, scope="session")
-def identity_calibration(tmp_path_factory):
-    """These tests check the evidence and the decision rule; the shipped calibration map is data
-    fitted by the gap study (service/diagnosis/calibration.json, tested on its own in
-    test_parts.py), so here the stated probability is the evidence's own. Session-wide, so the
-    module-scoped diagnoses of test_pipeline.py see it too."""
-    from service.diagnosis import calibration
-
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(calibration, "PATH", tmp_path_factory.mktemp("calibration") / "absent.json")
-        yield

@@ -1,15 +1,13 @@
 """Pure parts of the pipeline: the evidence (nested likelihood ratio, noise model), the
-discrepancy term, blocks in time, the calibration map, the CLI's capture expansion, the group
+discrepancy term, blocks in time, the CLI's capture expansion, the group
 generators' interface (the study's scoring: tests/studies/test_gap_scoring.py)."""
 
 import json
-from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from service.diagnosis.calibration import calibrate, load, renormalise
 from service.diagnosis.commands import expand
 from service.diagnosis.data import block_samples
 from service.diagnosis.decision import gap_sigma
@@ -92,27 +90,6 @@ def test_gap_sigma_in_time_blocks():
     assert block_samples(128_000) == 16 and block_samples(5_000) == 1 and block_samples(64_000) == 8
 
 
-def test_calibration_map_and_one_story(tmp_path):
-    assert calibrate(0.93, str(tmp_path / "absent.json")) == (0.93, "identity")
-    p = tmp_path / "cal.json"
-    p.write_text(json.dumps({"method": "isotonic", "x": [0.0, 0.5, 1.0], "y": [0.0, 0.4, 0.9], "fitted_on": ["a"],
-                             "n": 20, "note": "test"}))
-    assert calibrate(0.75, str(p)) == (pytest.approx(0.65), "isotonic")
-    probs = renormalise({"a": 0.8, "b": 0.15, "none": 0.05}, "a", 0.9)   # raised: the others shrink
-    assert probs["a"] == 0.9 and sum(probs.values()) == pytest.approx(1.0)
-    assert probs["b"] / probs["none"] == pytest.approx(3.0)
-    # lowered: no alternative gains, none passes the answer, the rest is not attributed
-    probs = renormalise({"none": 0.963, "outside_catalogue": 0.0337, "b": 0.0033}, "none", 0.2)
-    assert probs["none"] == 0.2 and probs["outside_catalogue"] == 0.0337 and probs["b"] == 0.0033
-    assert probs["unattributed"] == pytest.approx(1.0 - 0.2 - 0.0337 - 0.0033)
-    probs = renormalise({"a": 0.5, "b": 0.45, "none": 0.05}, "a", 0.2)
-    assert probs["b"] == 0.2 and max(probs, key=lambda k: probs[k] if k != "unattributed" else -1) in ("a", "b")
-    assert sum(probs.values()) == pytest.approx(1.0)
-    p.write_text(json.dumps({"x": [0.5, 0.2], "y": [0.1, 0.2]}))
-    with pytest.raises(ValueError, match="x must ascend"):
-        load(str(p))
-
-
 def test_expand_dir_glob_and_errors(tmp_path):
     for n in ("b.cfg", "a.cfg", "a.dat", "notes.txt"):
         (tmp_path / n).write_text("x")
@@ -154,15 +131,3 @@ def test_measurement_separation():
     assert _separation([cw], [a], [3 * a]) == pytest.approx(0.0)          # b rescaled mimics a exactly
     b = np.array([0.0, 0.0, 2.0])
     assert _separation([cw], [a], [b]) == pytest.approx(min(5.0, 4.0))    # orthogonal: the smaller one is left
-
-
-def test_the_shipped_calibration_map_is_valid_and_from_the_development_prototypes():
-    from service.diagnosis import calibration
-
-    path = Path(calibration.__file__).with_name("calibration.json")
-    if not path.exists():
-        pytest.skip("no calibration map shipped: the stated probability is the evidence's own")
-    c = load(str(path))
-    assert set(c["fitted_on"]) <= {"a", "b", "c"} and c["n"] >= 1  # never fitted on a held-out prototype
-    p, method = calibrate(0.999, str(path))
-    assert 0.0 <= p <= 1.0 and method == c["method"]

@@ -46,16 +46,6 @@ def test_a_shape_fitting_noise_does_not_predict():
     assert np.all(real > 0) and real.mean() > 5
 
 
-def test_pseudo_bma_plus_carries_the_spread_over_units():
-    prior = {"a": 0.5, "b": 0.5}
-    w = P.pseudo_bma_plus({"a": np.full(5, 10.0), "b": np.zeros(5)}, prior)
-    assert w["a"] > 0.999
-    # a wins by much on two units and loses by less on three: the sum favours a, the units do not agree
-    w = P.pseudo_bma_plus({"a": np.array([12.0, 12.0, -7.0, -7.0, -7.0]), "b": np.zeros(5)}, prior)
-    assert 0.2 < w["a"] < 0.8
-    assert sum(w.values()) == pytest.approx(1.0)
-
-
 def _cw(r, Q=None):
     t = np.arange(r.size) / 8000.0
     data = SimpleNamespace(t=t, weight=np.ones(r.size), count=np.ones(r.size))

@@ -144,15 +144,3 @@ def test_stated_gap_reduction_against_the_oracle():
     assert stated_reduction(r) == (4.0 - 1.0) * 100 * 16            # 4800
     s = shrink_ratios([r, dict(r, oracle={"delta_chi2": 2000.0})])
     assert s["ratios"] == [1.2, 2.4] and s["k"] == 1 and s["n"] == 2
-
-
-def test_the_shipped_map_loads_in_the_diagnosis(tmp_path):
-    from service.diagnosis.calibration import calibrate
-    from service.studies.gap.calibration import write_shipped
-
-    rows = [row(["x"], "named", ["x"], p=1.0, raw=1.0, prototype=q) for q in "abc"]
-    rows.append(row(["x"], "named", ["y"], answer="y", p=1.0, raw=1.0, prototype="a"))
-    m = fit_map(rows)                                  # one raw value only: still two points
-    assert m["x"] == [0.0, 1.0] and m["y"] == [0.75, 0.75]
-    path = write_shipped(m, tmp_path / "calibration.json")
-    assert calibrate(1.0, str(path)) == (0.75, "isotonic")

@@ -147,7 +147,7 @@ def _rk4_step(op, x, hs, p, e, c, cx, cy, cc):
     return x + hs * (k1 + 2.0 * k2 + 2.0 * k3 + k4) / 6.0
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def integrate_rk4(op, x0, p, e, c, cx, cy, cc, t, dt_max):
     """Fixed-step RK4 with steps landing on every ``t`` (non-decreasing, from 0) [s].
 

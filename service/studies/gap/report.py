@@ -8,7 +8,7 @@ import json
 import os
 from pathlib import Path
 
-from .calibration import apply_map, fit_map, lopo, raw_probability, write_shipped
+from .calibration import apply_map, fit_map, lopo, raw_probability
 from .scoring import DEVELOPMENT, TARGETS, meets, reliability, right, score
 
 LABELS = {"top1_detectable": "top-1 on detectable", "top1_detectable_1000": "top-1 on oracle Δχ² ≥ 1,000", "none_on_healthy": "healthy → none",
@@ -40,8 +40,8 @@ def summarise(out: Path, rows, meta, *, ship_calibration: bool = False) -> dict:
     _write(out / "gap_groups.json", {**meta, "per_prototype": figures, "rows": rows})
     _write(out / "gap_calibration.json", {**meta, **cal})
     (out / "gap.md").write_text(markdown(figures, cal, meta))
-    if ship_calibration and full is not None and set(full["fitted_on"]) == set(DEVELOPMENT):
-        write_shipped(full)
+    # ``ship_calibration`` is kept for the callers; nothing is shipped from here any more: the
+    # diagnosis's probabilities are the learnt scorer's (bench/gap_scorer.py ships it, issue 48)
     return {**meta, "per_prototype": figures, "calibration": cal}
 
 
