@@ -19,6 +19,8 @@ operation. Pure: no I/O.
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from .events import band
@@ -40,11 +42,21 @@ SEEN_FRACTION = 0.8
 """An event is part of the fingerprint when this fraction of its operations show it."""
 
 
-def envelope(vibration, sample_rate: float, t_motion_s: float) -> dict | None:
+def _four_digits(v: np.ndarray) -> np.ndarray:
+    """``v`` rounded to 4 significant digits (what the stored envelope keeps)."""
+    v = np.asarray(v, dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        exp = np.where(v != 0, np.floor(np.log10(np.abs(v))), 0.0)
+    scale = 10.0 ** (3 - exp)
+    return np.round(v * scale) / scale
+
+
+def envelope(vibration, sample_rate: float, t_motion_s: float, *, banded: np.ndarray | None = None) -> dict | None:
     """The band-limited rms envelope [g] on the fingerprint's grid (None outside the capture).
 
     Returns ``{"t0_s", "dt_s", "g"}``: the first block's start relative to the motion [s], the
-    block length [s] and each block's rms [g]; None when there is no usable channel.
+    block length [s] and each block's rms [g]; None when there is no usable channel. ``banded``:
+    the channel already band-passed (``events.band``), when the caller has it.
     """
     if vibration is None:
         return None
@@ -52,14 +64,19 @@ def envelope(vibration, sample_rate: float, t_motion_s: float) -> dict | None:
     fs = float(sample_rate)
     if x.size < 64 or not np.all(np.isfinite(x)) or np.ptp(x) == 0:
         return None
-    y = band(x - np.median(x[: max(64, int(2e-3 * fs))]), fs)
+    y = band(x, fs) if banded is None else np.asarray(banded, dtype=float)
     step = max(1, int(round(ENVELOPE_STEP_S * fs)))
     i0 = int(round((t_motion_s + ENVELOPE_SPAN_S[0]) * fs))
     blocks = int(round((ENVELOPE_SPAN_S[1] - ENVELOPE_SPAN_S[0]) * fs / step))
-    g = []
-    for b in range(blocks):
-        lo, hi = i0 + b * step, i0 + (b + 1) * step
-        g.append(None if lo < 0 or hi > y.size else float(f"{np.sqrt(np.mean(y[lo:hi] ** 2)):.4g}"))
+    # each block's rms at once; a block that reaches outside the capture is None
+    starts = i0 + step * np.arange(blocks)
+    inside = (starts >= 0) & (starts + step <= y.size)
+    rms = np.full(blocks, np.nan)
+    if inside.any():
+        first, last = int(np.argmax(inside)), int(blocks - 1 - np.argmax(inside[::-1]))
+        seg = y[starts[first]: starts[last] + step] ** 2
+        rms[first:last + 1] = np.sqrt(seg.reshape(last - first + 1, step).mean(axis=1))
+    g = [v if ok else None for ok, v in zip(inside.tolist(), _four_digits(rms).tolist())]
     return {"t0_s": (i0 - t_motion_s * fs) / fs, "dt_s": step / fs, "g": g}
 
 
@@ -113,7 +130,9 @@ class Fingerprint:
         self.envelope_ = None
         if len(envs) >= self.min_operations and len({len(e["g"]) for e in envs}) == 1:
             db = np.vstack([_db(e) for e in envs])
-            with np.errstate(all="ignore"):
+            with np.errstate(all="ignore"), warnings.catch_warnings():
+                # a block outside every capture is all NaN, one inside a single capture has no sd
+                warnings.simplefilter("ignore", RuntimeWarning)
                 mean, sd = np.nanmean(db, axis=0), np.nanstd(db, axis=0, ddof=1)
             self.envelope_ = {"t0_s": envs[0]["t0_s"], "dt_s": envs[0]["dt_s"],
                               "mean_db": [None if not np.isfinite(v) else round(float(v), 2) for v in mean],

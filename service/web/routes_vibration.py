@@ -41,8 +41,9 @@ def vibration_view(ch: dict | None, fp) -> dict:
                               "events": fp.events_}
         e = fp.envelope_
         if e and env and len(e["mean_db"]) == len(env["g"]):
-            lo = [None if m is None else m - 3 * s for m, s in zip(e["mean_db"], e["sd_db"])]
-            hi = [None if m is None else m + 3 * s for m, s in zip(e["mean_db"], e["sd_db"])]
+            # a block seen in one healthy operation only has a level but no spread: no band there
+            lo = [None if m is None or s is None else m - 3 * s for m, s in zip(e["mean_db"], e["sd_db"])]
+            hi = [None if m is None or s is None else m + 3 * s for m, s in zip(e["mean_db"], e["sd_db"])]
             out["fingerprint"].update(mean_g=[_g_of_db(v) for v in e["mean_db"]], lo_g=[_g_of_db(v) for v in lo],
                                       hi_g=[_g_of_db(v) for v in hi])
         if ch.get("vibration_events"):

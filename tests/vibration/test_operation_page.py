@@ -74,3 +74,21 @@ def test_operation_page_draws_the_envelope_against_the_fingerprint(live, browser
         assert log.foreign() == []
     finally:
         context.close()
+
+
+def test_a_fingerprint_block_without_spread_draws_no_band_there():
+    """A block seen in one healthy operation only has a level and no spread (sd None): the chart's
+    band is left open there instead of failing the page (a 500 before)."""
+    from types import SimpleNamespace
+
+    from service.web.routes_vibration import vibration_view
+
+    env = {"t0_s": -0.001, "dt_s": 0.00025, "g": [1.0, 2.0, None]}
+    fp = SimpleNamespace(count_=10, operation_ids_=list(range(10)), latch_=None, events_={},
+                         envelope_={"t0_s": -0.001, "dt_s": 0.00025, "mean_db": [0.0, 6.0, None],
+                                    "sd_db": [1.0, None, None]},
+                         shift=lambda ch: None)
+    view = vibration_view({"vibration_envelope": env, "vibration_events": []}, fp)
+    assert view["fingerprint"]["lo_g"][0] is not None and view["fingerprint"]["hi_g"][0] is not None
+    assert view["fingerprint"]["lo_g"][1] is None and view["fingerprint"]["hi_g"][1] is None
+    assert view["fingerprint"]["mean_g"][1] == 1.9953

@@ -47,8 +47,10 @@
     if (fp && fp.mean_g) {
       series.push({ label: "fingerprint mean (" + fp.count + " healthy operations)", stroke: "#1b7f3b", width: 1.5, dash: [6, 3], points: { show: false },
         value: function (u, v) { return fmt(v, 3) + " g"; } });
-      series.push({ label: "+3σ", stroke: "rgba(27,127,59,0.5)", width: 1, points: { show: false } });
-      series.push({ label: "−3σ", stroke: "rgba(27,127,59,0.5)", width: 1, points: { show: false } });
+      series.push({ label: "+3σ", stroke: "rgba(27,127,59,0.5)", width: 1, points: { show: false },
+        value: function (u, v) { return fmt(v, 3) + " g"; } });
+      series.push({ label: "−3σ", stroke: "rgba(27,127,59,0.5)", width: 1, points: { show: false },
+        value: function (u, v) { return fmt(v, 3) + " g"; } });
       data.push(fp.mean_g, fp.hi_g, fp.lo_g);
     }
     var colors = { first_shock: "#b3261e", latch_release: "#d9822b", buffer_engagement: "#7a4cc2", end_stop: "#5d6d7e" };
