@@ -124,8 +124,10 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--corpus", type=Path, default=ROOT / "var/gap48")
     ap.add_argument("--ship", action="store_true")
+    ap.add_argument("--l2", type=float, default=train.L2, help="the scorer's L2 (default: the one fixed beforehand)")
     ap.add_argument("--out", type=Path, default=ROOT / "bench/results/gap_scorer.json")
     args = ap.parse_args(argv)
+    train.L2 = args.l2
     up0 = uptime()
     rows = [r for v in corpus.VARIANTS for r in corpus.rows(args.corpus, v)]
     items, left = train.dataset(rows)
