@@ -157,7 +157,9 @@ def main(argv=None):
                                "captures_per_group": sorted({it["row"]["n"] for it in items}),
                                "labels": dict(labels), "date": dt.date.today().isoformat(), "commit": commit,
                                "method": "conditional logit (McFadden 1974), L2 %g on standardised features" % train.L2},
-                "set": {"method": "APS (Romano, Sesia & Candes 2020), non-randomised", "alpha": train.ALPHA_SET,
+                "heldout": {k: out["lopo"]["all"][k] for k in ("set_holds_truth_detectable", "wrong_names",
+                                                                 "mean_set_size_detectable")},
+                "set": {"method": "APS (Romano, Sesia & Candes 2020), randomisation fixed at U = 0", "alpha": train.ALPHA_SET,
                         "qhat": q, "calibrated_on": "leave-one-prototype-out probabilities of every labelled row"},
                 "name": {"method": "Learn then Test (Angelopoulos et al. 2021), Hoeffding-Bentkus, fixed sequence",
                          "alpha": train.ALPHA_NAME, "delta": train.DELTA, "lambda": lam, "tested": tested[:12]}}
