@@ -76,8 +76,8 @@ def method_own(rows) -> dict:
     """The method's own answers before the scorer (its softmax and its threshold)."""
     ans = []
     for r in rows:
-        if r.get("error") or r.get("failed") or r.get("label") is None:
-            continue
+        if r.get("error") or r.get("failed") or r.get("label") is None or not r.get("status"):
+            continue           # rows diagnosed to their features only carry no answer of the method's
         lab = train.hyp_label(r["label"])
         top = r.get("answer")
         named = None
