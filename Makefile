@@ -10,6 +10,9 @@ CORE   := $(VENV)/.installed-core
 FULL   := $(VENV)/.installed-test
 TEST_EXTRAS ?= dev,studies,iec61850,docs,notify
 RUN_ARGS ?=
+# pytest-xdist workers: one per core. Each worker has its own scratch databases, ports (bound to
+# port 0) and data directories (tmp_path), so the lanes run side by side.
+PYTEST_N ?= auto
 
 .PHONY: run test check setup bench docs docs-serve screenshots clean
 
@@ -24,7 +27,7 @@ $(CORE): pyproject.toml | $(PY)
 
 $(FULL): pyproject.toml | $(PY)
 	$(PIP) -e ".[$(TEST_EXTRAS)]" 2>&1 | grep -v "^WARNING: Location\|^WARNING: The script" ; test $${PIPESTATUS[0]} -eq 0
-	$(PY) -c "import service.estimation.cmaes, numba, comtrade, pytest"
+	$(PY) -c "import service.estimation.cmaes, numba, comtrade, pytest, xdist"
 	touch $(CORE) $@
 
 setup: $(FULL)
@@ -33,13 +36,13 @@ run: $(CORE)
 	$(PY) -m service.cli demo $(RUN_ARGS)
 
 test: $(FULL)
-	$(PY) -m pytest -q $(PYTEST_ARGS)
+	$(PY) -m pytest -q -n $(PYTEST_N) $(PYTEST_ARGS)
 
 # The inner loop: the core lane alone (no PostgreSQL, Redis, browser or shared-data lane; no
-# long study or 10,000-operation checks). `make test` runs them all.
+# long study, end-to-end or 10,000-operation checks). `make test` runs them all.
 check: $(FULL)
 	HVCB_TEST_POSTGRES_URL= HVCB_TEST_REDIS_URL= HVCB_CHROMIUM=/nonexistent HVCB_SHARED_DIR=/nonexistent \
-	  $(PY) -m pytest -q -m "not slow and not history10k" $(PYTEST_ARGS)
+	  $(PY) -m pytest -q -n $(PYTEST_N) -m "not slow and not history10k and not integration" $(PYTEST_ARGS)
 
 # The README's and docs' screenshots, taken by the browser tests from the demo's running chain.
 screenshots: $(FULL)

@@ -20,6 +20,7 @@ import argparse
 import json
 import os
 import statistics
+import subprocess
 import time
 from pathlib import Path
 
@@ -152,6 +153,34 @@ def _warm_prior(breaker, op, cap_sibling, cap_same):
     return prior_from_fit(prev, "fit of close-nominal moved by 2 %")
 
 
+def _warm_parts(cap, breaker, op, prior, n) -> dict:
+    """Where a warm fit's time goes [ms CPU, medians]: the window, the travel characteristics and
+    the vibration read (both run in every fit_capture), and the estimator proper (the rest)."""
+    from service.mechanics.characteristics import travel_characteristics
+    from service.vibration import vibration_characteristics
+
+    def median_ms(f):
+        out = []
+        for _ in range(n):
+            t = time.process_time()
+            f()
+            out.append(time.process_time() - t)
+        return 1e3 * statistics.median(out)
+
+    r = fit_capture(cap, breaker, op, prior=prior)
+    w = prepare_window(cap, breaker, op)
+    t_motion = w.t_start + r.onset_delay_s
+    parts = {"fit_capture": median_ms(lambda: fit_capture(cap, breaker, op, prior=prior)),
+             "window": median_ms(lambda: prepare_window(cap, breaker, op)),
+             "travel_characteristics": median_ms(lambda: travel_characteristics(
+                 cap.t, cap.travel, op, stroke=breaker.stroke, t_start=w.t_start, alpha0=breaker.alpha0)),
+             "vibration_read": median_ms(lambda: vibration_characteristics(
+                 cap, op, t_motion, w.t_end, model_travel=lambda: r.fitted_travel(cap, breaker),
+                 alpha0=breaker.alpha0))}
+    parts["estimator"] = parts["fit_capture"] - parts["window"] - parts["travel_characteristics"] - parts["vibration_read"]
+    return {k: round(v, 3) for k, v in parts.items()}
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--fits", type=int, default=20)
@@ -170,6 +199,7 @@ def main():
     # The paper's protocol for the cold figure: a random start within Table 2's ranges.
     cold_settings = FitSettings(random_start=True)
     results = {"clock": "CPU time of this process (one core); *_wall_* keys are wall-clock",
+               "uptime_before": subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip(),
                "load_average_at_start": list(os.getloadavg())}
     for op, cap in caps.items():
         fit_capture(cap, breaker, op)  # compile and warm caches
@@ -188,6 +218,8 @@ def main():
                   f"{results[f'{key}_wall_median_s'] * 1e3:.1f} ms) over {args.fits} fits, "
                   f"median {results[f'{key}_median_evaluations']:.0f} evaluations")
         results[f"{op}_warm_prior"] = prior.source
+        results[f"{op}_warm_parts_ms"] = _warm_parts(cap, breaker, op, prior, args.fits)
+        print(f"{op} warm, its parts [ms CPU]: {results[f'{op}_warm_parts_ms']}")
 
     settings = FitSettings()
     dc = breaker.design_parameters()["DC"]
@@ -209,6 +241,7 @@ def main():
               f"ratio {results[f'{op}_naive_ratio']:.0f}x cold, "
               f"{results[f'{op}_naive_warm_ratio']:.0f}x warm")
     results["load_average_at_end"] = list(os.getloadavg())
+    results["uptime_after"] = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
     results["cores"] = 1
     results["machine"] = os.uname().machine
     out = REPO / "bench" / "results" / "fit_speed.json"

@@ -16,13 +16,16 @@ worker computes it. Scenarios (onset after 60-250 healthy operations):
   temperature (-25..+40 C, DO -0.4 %/K), given to the detector or not
 - healthy: no drift, 300-1000 operations, seasonal temperature given
 
-For each degrading history the prognosis is made when the true level is halfway (and three
+Questions, truths and counts are bench/prognosis_driver.py's, shared with the blind bench. For
+each degrading history the prognosis is made when the true level is halfway (and three
 quarters of the way) from the onset to the limit. The truth is the first operation whose
 noise-free level, at the temperature the limit refers to, is past the limit the prognosis used:
 the detector window's mean temperature (compensated, or not: an uncompensated window's mean is
 the level at its fits' mean temperature, and the window keeps learning past baseline_n). A
 truth at or before now is 0 operations, the "crossed: service is due" answer. A "no trend"
-prognosis has no median and no 95 % quantile: its interval is [p05, beyond the horizon). It reports the coverage of the 5-95 % interval
+prognosis has no median and no 95 % quantile: its interval is [p05, beyond the horizon); a truth
+beyond the horizon (or never) is held by a p95 beyond it. Long runs go in resumable chunks
+(``--parts N --part K``, each under the shared lock; the summary is written when all are in). It reports the coverage of the 5-95 % interval
 of operations-to-limit (target 0.88-0.92), the median relative error of the median at halfway
 (target <= 20 %), and for healthy breakers the share predicted to cross within 10 years
 (target <= 1 %). Writes bench/results/prognosis.json.
@@ -35,7 +38,6 @@ import json
 import math
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
 from datetime import timedelta
 from pathlib import Path
 
@@ -46,9 +48,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from alarm_rates import NOMINAL, OUTLIER_P, T0, TEMP_SLOPE, T_REF, Z95, temperature  # noqa: E402
 
-from service.alarms import DriftSettings, DriftState, FitObservation, update  # noqa: E402
+from prognosis_driver import (Case, costs, first_past, healthy_stats, run_case, run_parts, stats_of,  # noqa: E402
+                              uptime)
+
+from service.alarms import DriftSettings, FitObservation  # noqa: E402
 from service.breaker_limits import ParameterLimit  # noqa: E402
-from service.prognosis import prognose  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results" / "prognosis.json"
 LIMIT = {"DO": ParameterLimit(min_change=-0.25), "BO": ParameterLimit(min_change=-0.10)}
@@ -95,13 +99,6 @@ def observations(rng, parameter: str, factor: np.ndarray, *, seasonal: bool, giv
     return obs, temp
 
 
-def crossing(level: np.ndarray, bound: float, direction: str) -> int | None:
-    """First operation (1-based) whose true level is past ``bound``."""
-    past = level <= bound if direction == "falling" else level >= bound
-    idx = np.flatnonzero(past)
-    return int(idx[0]) + 1 if idx.size else None
-
-
 def one(scenario: str, seed: list[int], settings: DriftSettings) -> list[dict]:
     rng = np.random.default_rng(seed)
     seasonal = scenario in ("seasonal_given", "seasonal_not_given", "healthy")
@@ -110,47 +107,31 @@ def one(scenario: str, seed: list[int], settings: DriftSettings) -> list[dict]:
     if scenario == "healthy":
         n_ops = int(rng.integers(300, 1001))
         parameter, factor, draw = path(scenario, rng, n_ops, onset)
-        stops = [n_ops]
+        stops, fracs, true_factor = [n_ops], [None], None
     else:
         parameter, true_factor, draw = path(scenario, rng, 4000, onset)
-        c = crossing(true_factor, 1.0 + LIMIT[parameter].min_change, "falling")
-        stops = [onset + max(1, round(fr * (c - onset))) for fr in FRACTIONS]
+        c = first_past(true_factor, 1.0 + LIMIT[parameter].min_change, "falling")
+        # asked halfway and three quarters of the way from the onset to the crossing: the
+        # operation onset + f (c + 1 - onset) in 1-based counts, the crossing counted as in the driver
+        stops = [onset + max(1, round(fr * (c + 1 - onset))) for fr in FRACTIONS]
+        fracs = list(FRACTIONS)
         factor = true_factor[:stops[-1]]
     obs, temp = observations(rng, parameter, factor, seasonal=seasonal, give=give)
-    state, rows, k = DriftState.new(parameter, settings), [], 0
-    for j, o in enumerate(obs, start=1):
-        state, _ = update(state, o, settings)
-        if j != stops[k]:
-            continue
-        t0 = time.perf_counter()
-        prog = prognose(state, obs[:j], LIMIT[parameter])
-        cost = time.perf_counter() - t0
-        row = {"scenario": scenario, "parameter": parameter, "at": j, "fraction": None,
-               "status": prog.status, "alarm": state.level, "basis": prog.basis,
-               "cost_ms": cost * 1e3, "seasonal": prog.seasonal,
-               "low_frequency": prog.low_frequency_sd is not None, **draw}
-        q = prog.operations_to_limit
-        row["pred"] = [None, None, None] if q is None else [q.p05, q.median, q.p95]
-        if scenario != "healthy" and prog.limit is not None:
-            # The truth: the noise-free level, at the temperature the values are compensated to.
-            m = state.model
-            # Without compensation the baseline (and so a relative limit) is the mean of the
-            # detector's window, which keeps learning past its first baseline_n fits: the level
-            # at the window's mean temperature (the parameter is linear in temperature).
-            window_ops = [int(w_[0]) - 1 for w_ in state.window]
-            t_ref = m.t_mean if m.compensated else (float(np.mean(temp[window_ops])) if seasonal else T_REF)
-            level = NOMINAL[parameter] * true_factor
-            if seasonal:
-                level = level * (1.0 + TEMP_SLOPE[parameter] * (t_ref - T_REF))
-            c = crossing(level, prog.limit, prog.direction)
-            # Crossed at or before now: the right answer is 0 operations ("crossed: service is
-            # due"), which is what the prognosis reports for a trend already past its limit.
-            row.update(fraction=FRACTIONS[k], truth=None if c is None else max(c - j, 0))
-        rows.append(row)
-        k += 1
-        if k == len(stops):
-            break
-    return rows
+
+    def level(state):
+        # The truth: the noise-free level at the temperature the values are compensated to;
+        # without compensation the baseline (and so a relative limit) is the mean of the
+        # detector's window, which keeps learning past its first baseline_n fits: the level at
+        # the window's mean temperature (the parameter is linear in temperature).
+        m = state.model
+        window_ops = [int(w_[0]) - 1 for w_ in state.window]
+        t_ref = m.t_mean if m.compensated else (float(np.mean(temp[window_ops])) if seasonal else T_REF)
+        out = NOMINAL[parameter] * true_factor
+        return out * (1.0 + TEMP_SLOPE[parameter] * (t_ref - T_REF)) if seasonal else out
+
+    case = Case(name=scenario, parameter=parameter, limit=LIMIT[parameter], obs=obs, stops=stops, fractions=fracs,
+                true_level=None if scenario == "healthy" else level, extra={"seasonal": seasonal, **draw})
+    return run_case(case, settings)
 
 
 def _job(args):
@@ -160,35 +141,12 @@ def _job(args):
 
 
 def summarise(rows: list[dict]) -> dict:
-    def covered(r):
-        lo, _, hi = r["pred"]
-        lo, hi = (math.inf if lo is None else lo), (math.inf if hi is None else hi)
-        return r["truth"] is not None and lo <= r["truth"] <= hi
-
-    def stats_of(sel):
-        if not sel:
-            return None
-        half = [r for r in sel if r["fraction"] == 0.5]
-        errs = [abs((r["pred"][1] if r["pred"][1] is not None else math.inf) - r["truth"]) / max(r["truth"], 1)
-                for r in half if r["truth"] is not None]
-        below = sum(1 for r in sel if r["truth"] is not None and r["pred"][0] is not None and r["truth"] < r["pred"][0])
-        return {"predictions": len(sel), "coverage_90": round(float(np.mean([covered(r) for r in sel])), 4),
-                "coverage_90_at_half": round(float(np.mean([covered(r) for r in half])), 4) if half else None,
-                "truth_below_p05": round(below / len(sel), 4),
-                "truth_above_p95": round(1 - below / len(sel) - float(np.mean([covered(r) for r in sel])), 4),
-                "median_rel_error_at_half": round(float(np.median(errs)), 4) if errs else None,
-                "with_alarm": round(float(np.mean([r["alarm"] != "none" for r in sel])), 4)}
-
-    degrading = [r for r in rows if r["scenario"] != "healthy"]
-    healthy = [r for r in rows if r["scenario"] == "healthy"]
-    per = {s: stats_of([r for r in degrading if r["scenario"] == s]) for s in SCENARIOS if s != "healthy"}
-    costs = [r["cost_ms"] for r in rows]
-    return {"overall": stats_of(degrading), "per_scenario": per,
-            "healthy": {"breakers": len(healthy),
-                        "crossing_within_10_years": round(float(np.mean([r["pred"][1] is not None for r in healthy])), 4)
-                        if healthy else None},
-            "cost_ms_per_prognosis": {"median": round(float(np.median(costs)), 3),
-                                      "p99": round(float(np.percentile(costs, 99)), 3)}}
+    degrading = [r for r in rows if r["case"] != "healthy"]
+    healthy = [r for r in rows if r["case"] == "healthy"]
+    return {"overall": stats_of(degrading),
+            "per_scenario": {s: stats_of([r for r in degrading if r["case"] == s]) for s in SCENARIOS if s != "healthy"},
+            "healthy": healthy_stats(healthy),
+            "cost_ms_per_prognosis": costs(rows)}
 
 
 def main(argv=None) -> int:
@@ -197,16 +155,22 @@ def main(argv=None) -> int:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--seed", type=int, default=2031)
     ap.add_argument("--out", type=Path, default=RESULTS)
+    ap.add_argument("--part", type=int, default=None, help="run only this slice (0-based) of --parts")
+    ap.add_argument("--parts", type=int, default=1)
     a = ap.parse_args(argv)
     settings = DriftSettings()
     per = -(-a.histories // len(SCENARIOS))  # at least --histories in all
-    jobs = [(s, [[a.seed, k, b] for b in range(lo, min(per, lo + 20))], settings.to_dict())
-            for k, s in enumerate(SCENARIOS) for lo in range(0, per, 20)]
-    t0 = time.perf_counter()
-    with ProcessPoolExecutor(a.workers) as ex:
-        rows = [r for chunk in ex.map(_job, jobs) for r in chunk]
+    jobs = [(s, [[a.seed, k, b] for b in range(lo, min(per, lo + 5))], settings.to_dict())
+            for k, s in enumerate(SCENARIOS) for lo in range(0, per, 5)]
+    t0, up0 = time.perf_counter(), uptime()
+    rows = run_parts(_job, jobs, workers=a.workers, part=a.part, parts=a.parts,
+                     parts_dir=a.out.with_name(a.out.stem + "_parts"))
+    if rows is None:
+        print(f"part {a.part} of {a.parts} done ({time.perf_counter() - t0:.0f} s); the others are still to run")
+        return 0
     result = {"histories": per * len(SCENARIOS), "seed": a.seed, "workers": a.workers,
-              "runtime_s": round(time.perf_counter() - t0, 1), **summarise(rows),
+              "runtime_s_last_part": round(time.perf_counter() - t0, 1), "parts": a.parts,
+              "uptime_before": up0, "uptime_after": uptime(), **summarise(rows),
               "targets": {"coverage_90": [0.88, 0.92], "median_rel_error_at_half": 0.20,
                           "healthy_crossing_within_10_years": 0.01}}
     a.out.parent.mkdir(parents=True, exist_ok=True)

@@ -72,6 +72,47 @@ def stream_peak(Session, window, *, whole: bool = False) -> dict:
             "seconds": round(time.perf_counter() - t, 2)}
 
 
+def _via_service(settings, Session, env, out) -> dict:
+    """The page's button against ``hvcb report`` asking that running service (issue 51 item 4):
+    each the median of 3 after one warm-up, on the same database."""
+    import urllib.request
+
+    from service.api.app import create_app
+    from tests.live_server import LiveServer
+
+    with Session() as s, s.begin():
+        _, key = crud.create_api_key(s, name="bench-reader", role="reader")
+    app = create_app(settings, start_monitor=False)
+    button, command = [], []
+    with LiveServer(app, name="hvcb-report-bench") as server:
+        def press():
+            req = urllib.request.Request(f"{server.url}/api/v1/breakers/reference-252kV/report",
+                                         headers={"X-API-Key": key})
+            t = time.perf_counter()
+            while True:  # the button's download: 202 while it is drawn, then the PDF
+                with urllib.request.urlopen(req, timeout=600) as r:
+                    if r.status == 200:
+                        r.read()
+                        return time.perf_counter() - t
+                    req = urllib.request.Request(server.url + r.headers["Location"], headers={"X-API-Key": key})
+                time.sleep(0.2)
+
+        press()
+        for _ in range(3):
+            button.append(press())
+        argv = [sys.executable, "-m", "service.cli", "report", "reference-252kV", "-o", str(out),
+                "--url", server.url, "--key", key]
+        for i in range(4):
+            t = time.perf_counter()
+            run = subprocess.run(argv, cwd=REPO, env=env, capture_output=True, text=True)
+            if run.returncode != 0:
+                raise SystemExit(run.stderr)
+            if i:
+                command.append(time.perf_counter() - t)
+    b, c = statistics.median(button), statistics.median(command)
+    return {"button_wall_s": round(b, 2), "command_wall_s": round(c, 2), "command_over_button": round(c / b, 2)}
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--operations", type=int, default=10_000)
@@ -119,6 +160,7 @@ def main(argv=None) -> int:
                 return 1
             command[label] = {"wall_s": round(time.perf_counter() - t, 2),
                               "cpu_s": round(after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime, 2)}
+        via_service = _via_service(settings, Session, env, out)
         pages = subprocess.run(["pdfinfo", str(out)], capture_output=True, text=True).stdout
         pages = next((int(line.split()[-1]) for line in pages.splitlines() if line.startswith("Pages:")), None)
 
@@ -140,7 +182,7 @@ def main(argv=None) -> int:
 
     result = {
         "operations": n, "database": url.split(":")[0], "history_insert_s": round(history_s, 2),
-        "report": {"command": command, "gather_s": round(statistics.median(gathers), 2),
+        "report": {"command": command, "via_service": via_service, "gather_s": round(statistics.median(gathers), 2),
                    "render_s": round(statistics.median(renders), 2), "cpu_s": round(statistics.median(cpus), 2),
                    "pdf_bytes": len(pdf), "pages": pages},
         "csv_operations": {"streamed_first_2000": streamed_2k, "streamed_all": streamed,

@@ -9,6 +9,8 @@ the reader had to repair travels along in ``Capture.meta["warnings"]``.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import io
 from datetime import datetime, timedelta, timezone
 from pathlib import Path
@@ -162,7 +164,7 @@ def analyser_capture(text: str, *, source: str, travel_channel: str = "travel", 
         flags += (over_range_flag(masked),)
     cap = Capture(travel=np.asarray(travel, dtype=float), sample_rate=float(record.sample_rate), vibration=None,
                   source=source, meta=meta, aux=aux, flags=flags)
-    check_finite(cap)
+    cap = check_finite(cap)
     return cap
 
 
@@ -239,7 +241,7 @@ def record_to_capture(record: Record, *, source: str, travel_channel: str = "tra
         temp = _temperature(record, names, temperature_channel, source, notes)
         if temp is not None:
             cap.meta["temperature_c"], cap.meta["temperature_source"] = temp, "channel"
-    check_finite(cap)
+    cap = check_finite(cap)
     return cap
 
 
@@ -385,7 +387,7 @@ def parse_csv(text: str, *, source: str = "csv") -> Capture:
         raise CaptureError(f"{source}: the samples are not uniformly spaced in time")
     cap = Capture(travel=data[:, 1].astype(float), sample_rate=1.0 / period,
                   vibration=data[:, 2].astype(float) if data.shape[1] > 2 else None, source=source)
-    check_finite(cap)
+    cap = check_finite(cap)
     return cap
 
 
@@ -402,9 +404,18 @@ def first_bad_row(lines: list, width: int) -> str:
     return "not numeric CSV"
 
 
-def check_finite(cap: Capture) -> None:
+def check_finite(cap: Capture) -> Capture:
+    """Refuse a travel with NaN or infinite samples; a vibration channel with them is dropped
+    instead (the fit does not need it), its reason kept in ``meta["vibration_unread"]`` and the
+    warnings: a bad accelerometer never fails the upload (service/vibration reports the reason)."""
     if not np.all(np.isfinite(cap.travel)):
         n = int(np.sum(~np.isfinite(cap.travel)))
         raise CaptureError(f"{cap.source}: the travel channel has {n} NaN or infinite samples")
     if cap.vibration is not None and not np.all(np.isfinite(cap.vibration)):
-        raise CaptureError(f"{cap.source}: the vibration channel has NaN or infinite samples")
+        bad = ~np.isfinite(cap.vibration)
+        reason = (f"the vibration channel has {int(bad.sum())} NaN or infinite samples (the first at "
+                  f"{int(np.argmax(bad)) / cap.sample_rate * 1e3:.1f} ms): a broken sensor or cable; it is left out")
+        meta = {**cap.meta, "vibration_unread": reason,
+                "warnings": list(cap.meta.get("warnings") or []) + [reason]}
+        return replace(cap, vibration=None, vibration_limits=None, meta=meta)
+    return cap

@@ -16,7 +16,7 @@ from typing import Annotated
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model, field_validator, model_validator
 
-from .breaker_limits import CharacteristicLimits, Limits
+from .breaker_limits import CharacteristicLimits, Limits, ParameterLimit
 from .breaker_travel import TravelMapError, travel_options
 from .mechanics.breaker import TABLE2_RANGES, Breaker
 from .mechanics.cam_profile import CamProfile, CamProfileError
@@ -125,6 +125,15 @@ class Acquisition(_Section):
     motion_fraction: Fraction | None = None
 
 
+class VibrationLimits(_Section):
+    """``[vibration]``: the trip latch's maintenance limit (service.vibration's latch time: the
+    vibration's first shock to the start of motion). ``latch_time_max_ms`` [ms]: the prognosis
+    forecasts when the latch time reaches it, as ``[limits] latch_time_s = { max = ... }`` would in s."""
+
+    latch_time_max_ms: float | None = Field(None, gt=0.0, le=100.0, allow_inf_nan=False,
+                                            description="trip latch time limit [ms]")
+
+
 def _effects_section():
     """``[effects]``: how strong each catalogued effect typically is on this breaker [-] (the
     diagnosis's fit scale and its "absorbed" check); each within the catalogue's physical bound,
@@ -158,6 +167,18 @@ class BreakerFileModel(BaseModel):
     # accepted ranges of the travel characteristics: the condition report's pass/fail (docs/reports.md)
     characteristic_limits: CharacteristicLimits = Field(default_factory=CharacteristicLimits)
     effects: EffectStrengths = Field(default_factory=EffectStrengths)
+    # the trip latch's limit in ms (service.vibration), folded into [limits] as latch_time_s [s]
+    vibration: VibrationLimits = Field(default_factory=VibrationLimits)
+
+    @model_validator(mode="after")
+    def _latch_limit(self):
+        ms = self.vibration.latch_time_max_ms
+        if ms is not None:
+            if "latch_time_s" in self.limits.root:
+                raise ValueError("the latch time's limit is given twice: keep [vibration] latch_time_max_ms (ms) "
+                                 "or [limits] latch_time_s (s), not both")
+            self.limits.root["latch_time_s"] = ParameterLimit(max=ms / 1000.0)
+        return self
 
     @model_validator(mode="after")
     def _cam_or_unknown(self):

@@ -16,6 +16,8 @@ from .mechanics.breaker import TABLE2_RANGES
 # The fitted parameters a limit may name: the search ranges' parameters plus the puffer damping
 # CO (fitted for an [unknown_design] breaker).
 LIMITABLE = tuple(TABLE2_RANGES) + ("CO",)
+# ... and the vibration's trip-latch time [s] (service.vibration; [vibration] latch_time_max_ms in ms)
+LIMITABLE += ("latch_time_s",)
 # A relative change beyond +-100 % is not a maintenance limit but a different breaker.
 MAX_RELATIVE_CHANGE = 1.0
 

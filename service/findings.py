@@ -3,7 +3,8 @@ alarm line, the fleet, the condition report and the notifications share.
 
 From the reduced model's terms (docs/models.md): DO is the buffer's damping, so it falls when the
 buffer loses oil; BO is the opening spring's force net of the resistance, so it falls when the
-spring relaxes or the friction grows. Pure: no I/O.
+spring relaxes or the friction grows; latch_time_s (the vibration's first shock to the start of
+motion, service.vibration) grows when the trip latch's grease dries or dirt and corrosion stick it. Pure: no I/O.
 """
 
 from __future__ import annotations
@@ -12,7 +13,13 @@ from __future__ import annotations
 CAUSES = {("DO", "falling"): "buffer oil leak",
           ("DO", "rising"): "buffer damping increase (oil thickening, or a blocked orifice)",
           ("BO", "falling"): "opening spring relaxation or more resistance",
-          ("BO", "rising"): "less resistance or a spring pre-compression change"}
+          ("BO", "rising"): "less resistance or a spring pre-compression change",
+          ("latch_time_s", "rising"): "the trip latch is slow (dried or dirty grease, corrosion)",
+          ("latch_time_s", "falling"): "a faster trip latch (after lubrication, or a weaker latch spring)",
+          ("buffer_ratio", "rising"): "the buffer's shock comes later than the travel explains (a worn or loose "
+                                      "buffer mount, or the accelerometer moved)",
+          ("buffer_ratio", "falling"): "the buffer's shock comes earlier than the travel explains (a worn or loose "
+                                       "buffer mount, or the accelerometer moved)"}
 # parameter -> what the maintenance planner should do once it nears or passes its limit
 ACTIONS = {"DO": "Service the buffer (oil level and seals).",
            "BO": "Service the opening spring and its latch.",
@@ -20,7 +27,9 @@ ACTIONS = {"DO": "Service the buffer (oil level and seals).",
            "EO": "Inspect the buffer's end stop.",
            "AC": "Service the closing spring.",
            "CC": "Service the closing drive (lubrication, latch).",
-           "BC": "Inspect the linkage."}
+           "BC": "Inspect the linkage.",
+           "latch_time_s": "The trip latch is slow: lubricate or clean the latch.",
+           "buffer_ratio": "Inspect the buffer's mounting and the accelerometer's."}
 
 
 def likely_cause(parameter: str, direction: str) -> str:

@@ -91,13 +91,32 @@ _RAN: Counter = Counter()
 _SKIPPED: dict[str, Counter] = defaultdict(Counter)
 
 
+# End-to-end runs of whole processes, outages, protocols and studies, 10–150 s each (the slowest
+# of `--durations`): `make test` runs them, `make check` (the inner loop) leaves them out. Each
+# module's own unit tests of the same code run in `make check` too.
+INTEGRATION_MODULES = frozenset({
+    "tests/service/test_schemathesis.py", "tests/service/test_agent.py", "tests/service/test_outage.py",
+    "tests/service/test_notifications_demo.py", "tests/service/test_generated_client.py",
+    "tests/service/test_breaker_diagnoses_api.py", "tests/service/test_diagnosis_api.py",
+    "tests/service/test_ctrl_c.py", "tests/service/test_fleet_daqs.py", "tests/service/test_demo.py",
+    "tests/refit/test_refit_interrupt.py", "tests/storage/test_retention.py", "tests/storage/test_backup.py",
+    "tests/storage/test_migration_upgrade.py", "tests/conditions/test_classify_study.py",
+    "tests/security/test_d01_pool.py",
+})
+
+
 def pytest_collection_modifyitems(items):
     for item in items:
-        _ITEM_LANES[item.nodeid] = _lanes_of(item)
+        if Path(item.path).resolve().relative_to(REPO).as_posix() in INTEGRATION_MODULES:
+            item.add_marker(pytest.mark.integration)
+        _ITEM_LANES[item.nodeid] = lanes = _lanes_of(item)
+        # Under pytest-xdist the workers collect and the controller reports: the lanes travel
+        # with each report as a user property.
+        item.user_properties.append(("lanes", lanes))
 
 
 def pytest_runtest_logreport(report):
-    lanes = _ITEM_LANES.get(report.nodeid, [])
+    lanes = _ITEM_LANES.get(report.nodeid) or dict(report.user_properties).get("lanes") or []
     if hasattr(report, "wasxfail"):  # an expected failure ran: pytest reports it as skipped
         if report.when == "call":
             for lane in lanes or ["core (SQLite, in-process)"]:
@@ -114,7 +133,7 @@ def pytest_runtest_logreport(report):
 
 def pytest_terminal_summary(terminalreporter):
     """One summary at the end of the run: each lane with the tests it ran, and what skipped, why."""
-    if not _ITEM_LANES:
+    if not (_RAN or _SKIPPED):
         return
     w = terminalreporter
     w.section("lanes")

@@ -23,7 +23,7 @@ LAYERS: list[tuple[str, ...]] = [
      "service.arguments", "service.processes", "service.findings"),
     ("service.mechanics",),                                      # the paper's reduced physics
     ("drivers", "service.breaker_file", "service.breaker_travel", "service.breaker_limits",
-     "service.acquisition", "service.display"),  # captures, DAQs, breaker files; numbers and names in words
+     "service.acquisition", "service.display", "service.vibration"),  # captures, DAQs, breaker files; numbers and names in words
     ("service.estimation", "service.storage", "service.alarms", "service.prognosis", "service.prototypes"),
     ("service.diagnosis", "service.studies", "service.notifications"),
     ("service.jobs", "service.workers", "service.refit", "service.agent", "service.iec61850",

@@ -164,7 +164,23 @@ def _inspect_analyser(path: Path, text: str, enc: str, rate: float | None) -> di
         "metadata": md, "results": rec.results, "unparsed": [dict(u) for u in rec.unparsed],
         "masked": [m for c in rec.channels for m in c.masked_spans(fs)],
         "over_range_throughout": [c.name for c in rec.channels if c.over_range_throughout],
+        "coils": _coils(rec),
     }
+
+
+def _coils(rec) -> list:
+    """Each energised coil's peak, armature dip and current end (service.vibration.coils), beside
+    the analyser's own peak where the header states one."""
+    from service.vibration import coil_results
+
+    stated = (rec.results or {}).get("coil_current_peak_a") or {}
+    out = []
+    for c in rec.channels:
+        if c.kind == "coil_current" and c.wired:
+            peak = stated.get(c.name)
+            out += coil_results(c.name, c.data, rec.sample_rate,
+                                analyser_peak_a=float(peak) if isinstance(peak, (int, float)) and peak > 0 else None)
+    return out
 
 
 def _inspect_csv(path: Path, encoding: str | None) -> dict:

@@ -3,6 +3,7 @@ and the breaker's overall drift status. Pure, like drift.py."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 from datetime import datetime
 from typing import Any, Iterable, Mapping
@@ -69,11 +70,15 @@ def observations_from_fit(fit: Any, *, operation_id: int | str, time: datetime,
                           temperature: float | None = None) -> dict[str, FitObservation]:
     """The watched parameters of one fit (a ``FitResult`` or its ``to_dict()``) as observations.
 
-    Only feed good fits (status ok) — a failed fit has no value to watch.
+    A watched name that is not a fitted parameter is read from the fit's ``characteristics``
+    (e.g. ``latch_time_s``, the vibration's latch time [s]); a characteristic that is None (not
+    read, its reason beside it) gives no observation. Only feed good fits (status ok) — a failed
+    fit has no value to watch.
     """
     get = (lambda key: fit.get(key)) if isinstance(fit, Mapping) else (lambda key: getattr(fit, key, None))
     params, ci95, stderr = get("parameters") or {}, get("ci95") or {}, get("stderr")
     stderr = stderr if isinstance(stderr, Mapping) else {}
+    chars = get("characteristics") or {}
     out = {}
     for name in settings.watched:
         if name in params:
@@ -81,6 +86,10 @@ def observations_from_fit(fit: Any, *, operation_id: int | str, time: datetime,
             out[name] = FitObservation(operation_id=operation_id, time=time, value=params[name],
                                        ci95=tuple(ci) if ci is not None else None,
                                        stderr=stderr.get(name), temperature=temperature)
+        elif isinstance(chars, Mapping) and isinstance(chars.get(name), (int, float)) \
+                and not isinstance(chars.get(name), bool) and math.isfinite(chars[name]):
+            out[name] = FitObservation(operation_id=operation_id, time=time, value=float(chars[name]),
+                                       temperature=temperature)
     return out
 
 

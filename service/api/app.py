@@ -193,6 +193,9 @@ def create_app(settings: Settings, *, executor=None, start_monitor: bool = True,
     from .routes_setting import router as setting_router  # issue 39: the spring setting
 
     app.include_router(setting_router)
+    from .routes_maintenance import router as maintenance_router  # issue 50: the maintenance log
+
+    app.include_router(maintenance_router)
     from .routes_reports import router as reports_router  # issue 38: condition report, CSV exports
 
     app.include_router(reports_router)

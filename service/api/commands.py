@@ -152,9 +152,12 @@ def cmd_demo(args) -> int:
                     "modbus": {"transport": "tcp", "host": "127.0.0.1", "port": port, "poll_interval_s": 0.2}}]
     try:
         # the demo's own SQLite file; HVCB_DEMO_DATABASE_URL (an empty database) for load benches on PostgreSQL
+        # the demo's latch sticks (service/api/demo.py): its latch time is watched beside DO and BO
+        alarms = {**base.alarms, "watched": {**(base.alarms.get("watched") or {"DO": "falling", "BO": "both"}),
+                                             "latch_time_s": "rising"}}
         settings = _settings(args, host=args.host, port=args.port, data_dir=demo_dir,
                              database_url=os.environ.get("HVCB_DEMO_DATABASE_URL", ""),
-                             broker_url="", executor="local", acquisition=acquisition)
+                             broker_url="", executor="local", acquisition=acquisition, alarms=alarms)
         _migrate(settings)
         keys: list[str] = []  # the demo's fresh admin key, shown with the page's URL
         app = create_app(settings, on_key=keys.append)

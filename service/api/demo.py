@@ -1,7 +1,8 @@
 """The embedded demo's DAQ: a Modbus TCP DAQ emulator on loopback playing a scripted history.
 
 The history of the reference breaker: a healthy baseline, then a slow buffer oil leak (DO
-falling). Each operation is made by the virtual prototype with mild physical effects (viscous
+falling), and from the 40th opening a trip latch that sticks more each opening (the vibration's
+latch time rising, service.vibration). Each operation is made by the virtual prototype with mild physical effects (viscous
 friction, sensor bow, ...) and run-to-run spread of the parameters, and queued in the emulator's
 capture buffer at a modest pace; the history is simulated in a process of its own, at a lower
 priority, so the emulator never takes the API's interpreter. The service reads it like a real DAQ: Modbus driver → trigger →
@@ -38,6 +39,20 @@ class DemoScript:
     jitter_rel: float = 0.004      # operation-to-operation scatter of the parameters [-]
     seed: int = 7
     effects: dict = field(default_factory=lambda: MILD_EFFECTS)
+    # The trip latch (issue 49): each opening's trip strike, the latch sticking more each opening
+    # from ``latch_stick_from`` on (dried grease), so the demo's latch-time alarm can be seen.
+    latch_s: float = 1.2e-3           # healthy strike-to-motion time [s]
+    latch_jitter_rel: float = 0.02    # opening-to-opening scatter of it [-]
+    latch_stick_from: int | None = 40  # first opening whose latch sticks (None: never)
+    latch_stick_per_op: float = 0.05e-3  # the latch time's growth per opening once sticking [s]
+    trip_strike_g: float = 30.0       # the strike's peak [g] (below the 50 g trigger)
+
+    def latch_time(self, i: int, rng) -> float:
+        """The strike-to-motion time [s] of opening ``i``."""
+        lt = self.latch_s * (1.0 + rng.normal(0.0, self.latch_jitter_rel))
+        if self.latch_stick_from is not None and i >= self.latch_stick_from:
+            lt += (i - self.latch_stick_from + 1) * self.latch_stick_per_op
+        return lt
 
     def parameters(self, breaker, i: int, rng) -> dict:
         p = dict(breaker.design_parameters())
@@ -64,17 +79,35 @@ def _simulators(breaker, effects: dict) -> dict:
     return sims
 
 
+def _trip_strike():
+    """Prototype A's trip strike (service.prototypes.a.trip_strike), or None without the prototypes."""
+    try:
+        from service.prototypes.a.trip_strike import add_trip_strike
+    except ImportError:
+        return None
+    return add_trip_strike
+
+
 def history(breaker, script: DemoScript) -> Iterator[tuple[int, str, object]]:
     """``(opening number, kind, Capture)`` of the scripted history, in order."""
+    import dataclasses
+
     rng = np.random.default_rng(script.seed)
     sims = _simulators(breaker, script.effects)
+    strike = _trip_strike()
     for i in range(script.total_ops):
         p = script.parameters(breaker, i, rng)
         for kind in ["open"] + (["close"] if (i + 1) % script.close_every == 0 else []):
             try:
-                cap, _ = synthesize_capture(breaker, kind, p, rng=rng, simulate=sims[kind])
+                cap, truth = synthesize_capture(breaker, kind, p, rng=rng, simulate=sims[kind])
             except ValueError:  # the prototype did not reach the end position: reduced model
-                cap, _ = synthesize_capture(breaker, kind, p, rng=rng)
+                cap, truth = synthesize_capture(breaker, kind, p, rng=rng)
+            if kind == "open" and strike is not None:
+                # a generator of its own, so the rest of the history is drawn as before
+                trip_rng = np.random.default_rng([script.seed, 49, i])
+                cap = dataclasses.replace(cap, vibration=strike(cap.vibration, cap.sample_rate, truth.t_motion,
+                                                                script.latch_time(i, trip_rng), trip_rng,
+                                                                strike_g=script.trip_strike_g))
             yield i, kind, cap
 
 

@@ -291,7 +291,9 @@ async def upload_capture(breaker_id: BreakerId, request: Request, response: Resp
                              description="ambient or mechanism temperature of the operation [C] "
                                          "(docs/alarms.md); else the capture's temperature channel, "
                                          "else the latest SCADA value")] = None,
-                         idempotency_key: Annotated[str | None, Header(
+                         # no `| None` either: a header cannot be null, only left out (a nullable
+                         # schema makes clients send "null", which the pattern refuses)
+                         idempotency_key: Annotated[str, Header(
                              alias="Idempotency-Key", pattern=r"^[0-9a-f]{64}$",
                              description="the capture's content hash (SHA-256 of the hex SHA-256 of the .cfg "
                                          "then the .dat): a retry answers with the stored operation")] = None):
@@ -406,6 +408,16 @@ def _scada_points(session, settings) -> list[s.ScadaPoint]:
                 shelf = shelves.get(name)
                 points.append(s.ScadaPoint(point=f"{row.tag}.{section}.{name}", value=value, unit=s.UNITS[name],
                                            timestamp=ts, quality=quality,
+                                           shelved_until=shelf.shelved_until if shelf else None,
+                                           shelved_by=shelf.shelved_by if shelf else None))
+            if kind == "open":  # the vibration's trip-latch time (service.vibration), from the same fit
+                latch = (fit.characteristics or {}).get("latch_time_s") if fit is not None else None
+                ts = fit.operation.occurred_at if fit is not None else None
+                good = isinstance(latch, (int, float)) and not daq_down and ts is not None and now - ts <= stale
+                shelf = shelves.get("latch_time_s")
+                points.append(s.ScadaPoint(point=f"{row.tag}.opening.latch_time_s",
+                                           value=float(latch) if isinstance(latch, (int, float)) else None, unit="s",
+                                           timestamp=ts, quality="good" if good else "bad",
                                            shelved_until=shelf.shelved_until if shelf else None,
                                            shelved_by=shelf.shelved_by if shelf else None))
         points.append(s.ScadaPoint(point=f"{row.tag}.alarm_level", value=float(level), unit="1", timestamp=now,

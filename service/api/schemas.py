@@ -92,8 +92,15 @@ class FitPublic(ORM):
     characteristics: dict | None = None
     interval_noise: dict | None = Field(None, description="which noise the 95 % intervals and the residual band "
                                         "stand for: basis \"idle samples\" or \"residual in motion\" (HAC "
-                                        "sandwich, docs/estimation.md), band_rad its 1σ [rad], each parameter's "
+                                        "sandwich of the residual less its smooth, repeating part, "
+                                        "docs/estimation.md), band_rad its 1σ [rad], each parameter's "
                                         "widening over the idle-noise interval")
+    model_bias: dict | None = Field(None, description="the residual the breaker repeats, not in the intervals: "
+                                    "basis (the breaker's recent mean residual, or this operation's smooth part), "
+                                    "rms_rad [rad], rms_over_noise, and effect_bound: each parameter's largest "
+                                    "shift a misfit of that size could cause [parameter unit]")
+    zero_rad: float | None = Field(None, description="the transducer's zero before the motion, taken off before "
+                                   "the fit [rad]")
     queued_at: UtcTime
     started_at: UtcTime | None = None
     finished_at: UtcTime | None = None

@@ -74,6 +74,13 @@ def format_fit(result) -> str:
         lines.append(f"95% CI from the residual in motion (its AR({n['ar_order']}) correlation, "
                      f"{n['band_rad'] * 1e3:.3f} mrad rms): up to {widest[1]:.1f}x the idle-noise "
                      f"interval ({widest[0]})")
+    b = result.model_bias
+    if b is not None:
+        pct = {k: 100 * v / abs(result.parameters[k]) for k, v in b["effect_bound"].items() if result.parameters.get(k)}
+        most = max(pct.items(), key=lambda kv: kv[1]) if pct else None
+        lines.append(f"model bias (not in the CI): {b['rms_rad'] * 1e3:.3f} mrad rms repeats, "
+                     f"{b['rms_over_noise']:.2f}x the noise, from {b['basis']}"
+                     + (f"; it could move {most[0]} by at most ±{most[1]:.2f} %" if most else ""))
     if result.operation == "close":
         lines.append(f"DC = {result.dc_used:.2f} s^-2 from the {result.dc_source}")
     for name, est in result.structure.items():

@@ -23,6 +23,7 @@ from .curves import ClosingCurves, OpeningCurves, weighted_rmse
 from .parameter_space import ParameterSpace
 from .result import FitResult
 from .polish import batched_jacobian, polish
+from .model_bias import ResidualShape, bias_summary, repeating_rows, updated, varying_part
 from .uncertainty import Z95, correlated_covariance
 from .warm_start import Prior, sigma0, warm_space
 from .window import FitError, FitWindow, block_samples, decimate, prepare_window
@@ -141,9 +142,10 @@ def fit_capture(capture: Capture, breaker: Breaker, operation: str, *, dc: float
         if not np.isfinite(dc) or dc <= 0:
             raise FitError(f"DC must be a positive number of s^-2, got {dc}")
         dc = float(dc)
+    shape = prior.residual_shape if prior is not None and prior.operation == operation else None
     if prior is not None and (prior.operation != operation or not prior.usable()):
         prior = None
-    fit_one = _fit_opening if operation == "open" else partial(_fit_closing, dc=dc)
+    fit_one = partial(_fit_opening, shape=shape) if operation == "open" else partial(_fit_closing, dc=dc, shape=shape)
     result, fallback = None, None
     if prior is not None:
         result = fit_one(window, breaker, seed, settings, evaluator, prior=prior)
@@ -177,6 +179,15 @@ def fit_capture(capture: Capture, breaker: Breaker, operation: str, *, dc: float
     result.characteristics = travel_characteristics(
         capture.t, capture.travel, operation, stroke=breaker.stroke, t_start=window.t_start,
         alpha0=result.structure.get("alpha0", {}).get("value", breaker.alpha0))
+    from ..vibration import VibrationError, unread as unread_vibration, vibration_characteristics
+
+    try:  # the vibration's latch time and events (service.vibration); a bad channel never fails the fit
+        result.characteristics.update(vibration_characteristics(
+            capture, operation, window.t_start + result.onset_delay_s, window.t_end,
+            model_travel=partial(result.fitted_travel, capture, breaker),
+            alpha0=result.structure.get("alpha0", {}).get("value", breaker.alpha0)))
+    except VibrationError as exc:
+        result.characteristics.update(unread_vibration(str(exc)))
     if capture.meta.get("travel_map"):
         from .structure import characteristics_in_record_unit
 
@@ -233,7 +244,7 @@ def _search(score, space: ParameterSpace, seed: int, settings: FitSettings, eval
 
 
 def _fit_opening(window: FitWindow, breaker: Breaker, seed, settings, evaluator,
-                 prior: Prior | None = None) -> FitResult:
+                 prior: Prior | None = None, *, shape: ResidualShape | None = None) -> FitResult:
     grid = decimate(window.t, window.y, block_samples(settings.block_open, window.sample_rate))
     tau_lo, tau_hi = window.tau_range or (0.0, settings.tau_max)
     above = np.nonzero(grid.y > breaker.alpha0)[0]
@@ -260,7 +271,7 @@ def _fit_opening(window: FitWindow, breaker: Breaker, seed, settings, evaluator,
             (lower, upper, scale), prior, tuple(names), seed, settings, evaluator, target, tau_hi)
         return _finish("open", names, x, residual_rows, scale, lower, upper, window, settings,
                        evaluations, 0, stages, [], ranges, start=f"warm start from {prior.source}",
-                       polished=polished)
+                       polished=polished, grid=grid, shape=shape)
 
     ranges = dict(breaker.ranges, tau=(tau_lo, tau_hi))
     pre = OpeningCurves(breaker, _subgrid(grid, n1))
@@ -291,11 +302,11 @@ def _fit_opening(window: FitWindow, breaker: Breaker, seed, settings, evaluator,
     x = np.array([AO, BO, x2[0], x2[1], tau])
     return _finish("open", names, x, residual_rows, scale, lower, upper, window, settings,
                    ev1 + ev2, ra1 + ra2, st1 + st2, hit1 + hit2,
-                   {**space1.as_dict(), **space2.as_dict()})
+                   {**space1.as_dict(), **space2.as_dict()}, grid=grid, shape=shape)
 
 
 def _fit_closing(window: FitWindow, breaker: Breaker, seed, settings, evaluator,
-                 prior: Prior | None = None, *, dc: float) -> FitResult:
+                 prior: Prior | None = None, *, dc: float, shape: ResidualShape | None = None) -> FitResult:
     fs = window.sample_rate
     grid = decimate(window.t, window.y, block_samples(settings.block_close, fs))
     tau_lo, tau_hi = window.tau_range or (0.0, settings.tau_max)
@@ -323,14 +334,14 @@ def _fit_closing(window: FitWindow, breaker: Breaker, seed, settings, evaluator,
             evaluator, target, tau_hi)
         return _finish("close", names, x, residual_rows, scale, lower, upper, window, settings,
                        evaluations, 0, stages, [], ranges, start=f"warm start from {prior.source}",
-                       polished=polished)
+                       polished=polished, grid=grid, shape=shape)
     ranges = dict(breaker.ranges, tau=(tau_lo, tau_hi))
     space = ParameterSpace.from_ranges(("AC", "BC", "CC", "tau"), ranges)
     x, space, ev, ra, st, hit = _search(
         score, space, seed, settings, evaluator,
         target=_floor_target(search.grid, window, settings.search_floor_blocks))
     return _finish("close", names, x, residual_rows, scale, lower, upper, window, settings,
-                   ev, ra, st, hit, space.as_dict())
+                   ev, ra, st, hit, space.as_dict(), grid=grid, shape=shape)
 
 
 def _warm_search(score, residual_rows, bounds, prior: Prior, names: tuple, seed, settings,
@@ -366,6 +377,12 @@ def _warm_search(score, residual_rows, bounds, prior: Prior, names: tuple, seed,
         evaluations += 1
         if f_lm <= target:
             start, polished = u_lm, True
+    if polished:
+        # The least-squares step already reached the noise floor: nothing CMA-ES could find around
+        # it would fit better than noise allows, so it is not run (the warm fit's main cost).
+        stage = {"ranges": space.as_dict(), "iterations": 0, "evaluations": 0, "stop": "noise_floor", "reached_by": "least-squares polish",
+                 "rmse_grid_rad": f_lm, "warm_start": prior.source, "prior_in_basin": True}
+        return pol.x, evaluations, [stage], space.as_dict(), True
     res = cmaes.minimize(score_unit, len(names), seed=seed, x0=start, sigma0=sigma0(prior),
                          rules=settings.rules, target=target, target_window=WARM_STALL,
                          score_start=True)
@@ -381,7 +398,7 @@ def _warm_search(score, residual_rows, bounds, prior: Prior, names: tuple, seed,
 
 def _finish(operation, names, x, residual_rows, scale, lower, upper, window, settings,
             evaluations, readaptations, stages, edge_hits, ranges, start="cold search",
-            polished=False) -> FitResult:
+            polished=False, *, grid, shape: ResidualShape | None = None) -> FitResult:
     warnings = []
     if edge_hits:
         warnings.append(f"estimates still on a search-range edge after {readaptations} "
@@ -399,7 +416,15 @@ def _finish(operation, names, x, residual_rows, scale, lower, upper, window, set
     # The covariance needs the Jacobian at the reported estimate itself.
     # ...and the residual it leaves, with its correlation (AR(p) residual sandwich, uncertainty.py).
     resid, jac = batched_jacobian(residual_rows, x, scale, lower, upper)
-    unc = correlated_covariance(jac, resid, window.noise_rad, scale, n_model=len(names) - 1)
+    # The interval stands for what varies between operations: the residual less the shape the
+    # breaker's recent operations repeat (service.estimation.model_bias), which is its bias.
+    t_rel = grid.t - x[-1]
+    weight = grid.weight
+    varying, smooth = varying_part(resid, weight, t_rel)
+    unc = correlated_covariance(jac, varying, window.noise_rad, scale, n_model=len(names) - 1)
+    repeat, basis = repeating_rows(shape, smooth, weight, t_rel)
+    model_bias = bias_summary(repeat, basis, weight, jac[:, :-1], window.noise_rad, names[:-1])
+    new_shape = updated(shape, operation, t_rel, resid / weight)
     if x[-1] <= lower[-1] + 1e-9 or x[-1] >= upper[-1] - 1e-9:
         warnings.append(f"the onset delay sits on its bound ({x[-1] * 1e3:.2f} ms): the start of "
                         "motion does not match the model, and the confidence intervals understate "
@@ -415,16 +440,18 @@ def _finish(operation, names, x, residual_rows, scale, lower, upper, window, set
         noise_rad=window.noise_rad, evaluations=int(evaluations), runtime_s=0.0,
         identifiable=unc.identifiable, condition_number=unc.condition_number, ranges=ranges,
         readaptations=readaptations, stages=stages, warnings=warnings, start=start,
-        interval_noise=_interval_noise(unc, model_names, window.noise_rad))
+        zero_rad=window.zero_rad, interval_noise=_interval_noise(unc, model_names, window.noise_rad),
+        model_bias=model_bias, residual_shape=new_shape)
 
 
 def _interval_noise(unc, model_names, idle_rad: float) -> dict | None:
     """Which noise the intervals and the residual band stand for (FitResult.interval_noise)."""
+    kept = {"repeating_part": "left out: the residual's smooth part is the model's bias (model_bias)"}
     if unc.noise is None:
-        return {"basis": "idle samples", "band_rad": float(idle_rad), "idle_noise_rad": float(idle_rad)}
+        return {"basis": "idle samples", "band_rad": float(idle_rad), "idle_noise_rad": float(idle_rad), **kept}
     n = dict(unc.noise)
     widen = dict(zip(model_names, n.pop("widening")))
-    return {**n, "band_rad": float(idle_rad), "widening": widen}  # band_rad: fit_capture, at the samples
+    return {**n, "band_rad": float(idle_rad), "widening": widen, **kept}  # band_rad: fit_capture, at the samples
 
 
 def _floor_target(grid, window: FitWindow, blocks: float) -> float:

@@ -66,6 +66,15 @@ class FitResult:
         "idle samples" or "residual in motion", ``band_rad`` the band's 1σ [rad], the
         residual's AR order and each parameter's widening over the idle-noise interval
         (service.estimation.uncertainty).
+    zero_rad : float
+        The operation coordinate's level at rest before the motion, taken off before the fit
+        (the transducer's zero in this operation) [rad]; the fitted curve is drawn on top of it.
+    model_bias : dict or None
+        The residual the breaker's recent operations repeat (service.estimation.model_bias): its
+        rms [rad], over the noise, and each parameter's largest possible shift from it.
+    residual_shape : ResidualShape or None
+        The mean residual of the recent operations including this one: the next fit's warm
+        start carries it.
     """
 
     operation: str
@@ -96,6 +105,9 @@ class FitResult:
     command_source: str = "latch shock"
     picked: dict | None = None
     interval_noise: dict | None = None
+    zero_rad: float = 0.0
+    model_bias: dict | None = None
+    residual_shape: object | None = None
 
     def to_dict(self) -> dict:
         out = {
@@ -130,6 +142,11 @@ class FitResult:
             out["picked"] = self.picked
         if self.interval_noise is not None:
             out["interval_noise"] = self.interval_noise
+        out["zero_rad"] = float(self.zero_rad)
+        if self.model_bias is not None:
+            out["model_bias"] = self.model_bias
+        if self.residual_shape is not None:
+            out["residual_shape"] = self.residual_shape.to_dict()
         if self.operation == "close":
             out["dc_used"] = float(self.dc_used)
             out["dc_source"] = self.dc_source
@@ -144,12 +161,12 @@ class FitResult:
         return fitted_travel(self.operation, self.parameters, self.window_s[0], self.onset_delay_s,
                              capture.t, breaker, dc_used=self.dc_used,
                              alpha0=self.structure.get("alpha0", {}).get("value"),
-                             co=self.structure.get("CO", {}).get("value"))
+                             co=self.structure.get("CO", {}).get("value"), zero_rad=self.zero_rad)
 
 
 def fitted_travel(operation: str, parameters: dict, window_start_s: float, onset_delay_s: float,
                   t: np.ndarray, breaker: Breaker, *, dc_used: float | None = None,
-                  alpha0: float | None = None, co: float | None = None) -> np.ndarray:
+                  alpha0: float | None = None, co: float | None = None, zero_rad: float = 0.0) -> np.ndarray:
     """The model curve of a stored fit, rebuilt from its parameters (nothing else is stored).
 
     Parameters
@@ -167,6 +184,8 @@ def fitted_travel(operation: str, parameters: dict, window_start_s: float, onset
     alpha0, co : float, optional
         Buffer engagement [rad] and puffer damping CO [s^-1] an unknown design's fit estimated
         (``structure``); else the breaker file's.
+    zero_rad : float
+        The operation coordinate's rest level the fit took off (``FitResult.zero_rad``) [rad].
 
     Returns
     -------
@@ -187,4 +206,4 @@ def fitted_travel(operation: str, parameters: dict, window_start_s: float, onset
     else:
         x = [parameters[k] for k in ("AC", "BC", "CC")] + [onset_delay_s]
         theta = ClosingCurves.at(t, x, breaker, dc_used)
-    return travel_from_coordinate(theta, operation, breaker.stroke)
+    return travel_from_coordinate(theta + zero_rad, operation, breaker.stroke)

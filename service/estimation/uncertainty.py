@@ -5,10 +5,11 @@ leaves in motion, with its correlation: Σ is the Toeplitz autocovariance of an 
 model of that residual (the "AR-whitened residual"), of order p chosen by Schwarz's criterion
 (BIC) up to min(20, n/10), fitted by Yule–Walker (Levinson–Durbin). An AR(p) with p ≥ 2 follows
 the damped ringing of a torsional mode as well as a slow misfit, which a Bartlett-weighted
-Newey–West sum with Andrews' AR(1) bandwidth does not (bench/interval_coverage.py compares both;
+Newey–West sum with Andrews' AR(1) bandwidth does not (bench/interval_methods.py compares both;
 docs/estimation.md). A residual of white noise selects p = 0, Σ = σ²I: the classical σ²(JᵀJ)⁻¹,
 whose σ from the idle samples stays the floor of each standard error: where the model fits to the
-noise the interval is as before.
+noise the interval is as before. The fit hands it the residual less its smooth, repeating part
+(service/estimation/model_bias.py): the interval stands for what varies between operations.
 
 - G. Schwarz, "Estimating the dimension of a model", Ann. Statist. 6 (1978) 461–464.
 - W. J. den Haan, A. Levin, "A practitioner's guide to robust covariance matrix estimation",
@@ -19,6 +20,7 @@ noise the interval is as before.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -112,32 +114,44 @@ def residual_ar(e: np.ndarray, max_order: int | None = None) -> tuple[int, np.nd
     """AR(p) model of a residual ``e`` (n,), p by BIC (Schwarz 1978), Yule–Walker estimates.
 
     Returns (p, φ (p,), γ (n,)): the order, the coefficients and the model's autocovariance at
-    lags 0..n−1 [unit²] (the sample's for lags ≤ p, the Yule–Walker recursion beyond).
+    lags 0..n−1 [unit²] (the sample's for lags ≤ p, the Yule–Walker recursion beyond). One
+    Levinson–Durbin recursion gives every order's coefficients and innovation variance at once.
     """
-    from scipy.linalg import solve_toeplitz
-
     n = e.size
     top = int(min(MAX_AR_ORDER if max_order is None else max_order, n // 10))
-    g = np.array([np.dot(e[:n - k], e[k:]) / n for k in range(top + 1)])
-    best = (np.log(g[0]) if g[0] > 0 else -np.inf, 0, np.zeros(0))
+    g = np.array([e[:n - k] @ e[k:] for k in range(top + 1)]) / n
+    gl = g.tolist()  # the recursion on Python floats: a few hundred scalar steps, no array overhead
+    best = (math.log(gl[0]) if gl[0] > 0 else -math.inf, 0, [])
+    phi, s2 = [], gl[0]
     for p in range(1, top + 1):
-        try:
-            phi = solve_toeplitz(g[:p], g[1:p + 1])
-        except np.linalg.LinAlgError:
-            break
-        s2 = g[0] - phi @ g[1:p + 1]
         if not s2 > 0:
             break
-        bic = np.log(s2) + np.log(n) * p / n
+        k = (gl[p] - sum(f * gl[p - 1 - i] for i, f in enumerate(phi))) / s2
+        if not abs(k) < 1.0:  # not positive definite (rounding): no higher order is valid
+            break
+        phi = [f - k * phi[-1 - i] for i, f in enumerate(phi)] + [k]
+        s2 = s2 * (1.0 - k * k)
+        if not s2 > 0:
+            break
+        bic = math.log(s2) + math.log(n) * p / n
         if bic < best[0]:
             best = (bic, p, phi)
     _, p, phi = best
+    phi = np.array(phi, dtype=float)
     gam = np.zeros(n)
     gam[:p + 1] = g[:p + 1]
-    for k in range(p + 1, n):
-        gam[k] = phi @ gam[k - p:k][::-1]
-        if abs(gam[k]) < 1e-9 * g[0] and k > 2 * p:  # decayed: the rest is zero to rounding
-            break
+    if p > 0 and n > p + 1:
+        # γ(k) = Σ φᵢ γ(k − i) beyond lag p: an all-pole recursion, run by lfilter from the last p lags
+        from scipy.signal import lfilter, lfiltic
+
+        a = np.concatenate([[1.0], -phi])
+        zi = lfiltic([1.0], a, gam[p:0:-1])
+        gam[p + 1:] = lfilter([1.0], a, np.zeros(n - p - 1), zi=zi)[0]
+        # decayed: the rest is zero to rounding (and toeplitz_quadratic stops at the last lag kept)
+        k = np.arange(n)
+        small = np.nonzero((np.abs(gam) < 1e-9 * g[0]) & (k > 2 * p))[0]
+        if small.size:
+            gam[small[0]:] = 0.0
     return p, phi, gam
 
 
@@ -152,12 +166,15 @@ def toeplitz_quadratic(J: np.ndarray, gam: np.ndarray) -> np.ndarray:
     return M
 
 
-def correlated_covariance(jacobian, residual, noise_sd: float, scale, n_model: int | None = None) -> Uncertainty:
+def correlated_covariance(jacobian, residual, noise_sd: float, scale, n_model: int | None = None,
+                          variance_factor: float = 1.0) -> Uncertainty:
     """The fit's covariance from the residual it leaves, with its correlation (module docstring).
 
     ``jacobian`` (n, p) and ``residual`` (n,) are the fit's weighted residual rows and their
     derivatives, in time order, at the estimate [rad, rad per parameter unit]; ``noise_sd`` the
-    idle samples' σ [rad]. Each standard error is at least the classical one (σ²(JᵀJ)⁻¹).
+    idle samples' σ [rad]. ``variance_factor`` scales the residual's covariance (the residual
+    less a mean of k earlier ones has (1 + 1/k) times the variance it stands for:
+    service.estimation.model_bias). Each standard error is at least the classical one (σ²(JᵀJ)⁻¹).
     """
     white = covariance(jacobian, noise_sd, scale, n_model)
     J = np.asarray(jacobian, dtype=float) * scale[None, :]
@@ -172,7 +189,7 @@ def correlated_covariance(jacobian, residual, noise_sd: float, scale, n_model: i
     except np.linalg.LinAlgError:
         Ainv = np.linalg.pinv(A / np.outer(d, d)) / np.outer(d, d)
     order, phi, gam = residual_ar(e)
-    cov_r = Ainv @ toeplitz_quadratic(J, gam) @ Ainv * np.outer(scale, scale)
+    cov_r = Ainv @ toeplitz_quadratic(J, gam) @ Ainv * np.outer(scale, scale) * variance_factor
     sd_r = np.sqrt(np.clip(np.diag(cov_r), 0, None))
     widen = np.where(sd_r > white.stderr, sd_r / np.where(white.stderr > 0, white.stderr, 1.0), 1.0)
     sd = white.stderr * widen

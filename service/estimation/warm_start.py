@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..mechanics.breaker import CLOSING_PARAMETERS, OPENING_PARAMETERS, Breaker
+from .model_bias import ResidualShape
 from .parameter_space import ParameterSpace
 
 # Relative spread (1 σ) of a prior: a previous fit moves by a few per cent between operations;
@@ -38,6 +39,9 @@ class Prior:
         The previous fit's RMSE over its noise floor (how well the model explained that curve).
     source : str
         Where it came from, in words (shown in the result).
+    residual_shape : ResidualShape or None
+        The breaker's recent operations' mean residual (the previous fit's), which the interval
+        leaves out as the model's bias (service.estimation.model_bias).
     """
 
     operation: str
@@ -46,6 +50,7 @@ class Prior:
     spread: float
     rmse_ratio: float | None
     source: str
+    residual_shape: ResidualShape | None = None
 
     def names(self) -> tuple:
         return OPENING_PARAMETERS if self.operation == "open" else CLOSING_PARAMETERS
@@ -74,8 +79,9 @@ def prior_from_fit(result: dict, source: str) -> Prior | None:
         ratio = float(rmse) / float(noise) if rmse and noise else None
     except (KeyError, TypeError, ValueError):
         return None
+    shape = ResidualShape.from_dict(result.get("residual_shape") or {})
     prior = Prior(operation, params, float(tau) if tau is not None else None, SPREAD_PREVIOUS_FIT,
-                  ratio, source)
+                  ratio, source, shape if shape is not None and shape.operation == operation else None)
     return prior if prior.usable() else None
 
 

@@ -31,6 +31,11 @@ PARAMETER_MEANING = {  # (meaning, unit): the units from the nomenclature, in AS
         ("BC", "inertia ratio J2/J1"),
         ("CC", "closing resistance factor (TCf + kO xO0 rO)/J2"))}
 
+# Watched names that are not fitted parameters, as data-object names (IEC 61850-7-1: letters and
+# digits, short): the vibration's trip-latch time (service.vibration).
+DO_NAMES = {"latch_time_s": "LatTm", "buffer_ratio": "BufRt"}
+PARAMETER_OF = {v: k for k, v in DO_NAMES.items()}
+
 # Data attributes of each common data class as hvcb serves them: (name, FC, type).
 CDC_ATTRIBUTES = {
     "SPS": (("stVal", "ST", "BOOLEAN"), ("q", "ST", "Quality"), ("t", "ST", "Timestamp")),
@@ -144,12 +149,15 @@ def logical_device(tag: str, breaker: str, watched: Iterable[str]) -> LogicalDev
         meaning, unit = PARAMETER_MEANING[name]
         kind = "opening" if name in OPENING else "closing"
         objs.append(DataObject("SOPM1", name, "MV", f"{meaning}, last {kind} fit", HVCB_NS, unit))
+    objs.append(DataObject("SOPM1", "LatTm", "MV", "trip latch time of the last opening: the vibration's "
+                                                   "first shock to the start of motion", HVCB_NS, "s"))
     members = ["SCBR1.OpTmWrn", "SCBR1.OpTmAlm"]
     for name in watched:
-        objs.append(DataObject("SOPM1", f"{name}Wrn", "SPS", f"{name} drift alarm raised (warning "
-                                                               f"or alarm level)", HVCB_NS))
-        objs.append(DataObject("SOPM1", f"{name}Alm", "SPS", f"{name} drift alarm at alarm level", HVCB_NS))
-        members += [f"SOPM1.{name}Wrn", f"SOPM1.{name}Alm"]
+        do = DO_NAMES.get(name, name)
+        objs.append(DataObject("SOPM1", f"{do}Wrn", "SPS", f"{name} drift alarm raised (warning "
+                                                             f"or alarm level)", HVCB_NS))
+        objs.append(DataObject("SOPM1", f"{do}Alm", "SPS", f"{name} drift alarm at alarm level", HVCB_NS))
+        members += [f"SOPM1.{do}Wrn", f"SOPM1.{do}Alm"]
     objs.append(DataObject("SOPM1", "OpsToLim", "MV", "median openings until the soonest maintenance "
                                                       "limit is crossed (prognosis); invalid: no limits, or "
                                                       "no crossing within the horizon", HVCB_NS, "1"))
@@ -182,6 +190,7 @@ class FitView:
     identifiable: bool | None
     occurred_at: datetime
     operating_time_s: float | None = None
+    latch_time_s: float | None = None
 
 
 @dataclass(frozen=True)
@@ -260,10 +269,16 @@ def values(ld: LogicalDevice, view: BreakerView, *, now: datetime, stale_after_s
         else:
             q = GOOD
         out[f"SOPM1.{name}"] = Value(float(fit.parameters[name]), q, fit.occurred_at)
+    opening = view.fits.get("open")
+    latch = opening.latch_time_s if opening is not None else None
+    out["SOPM1.LatTm"] = (Value(None, INVALID, opening.occurred_at if opening else None) if latch is None else
+                          Value(float(latch), OLD if view.daq_down or now - opening.occurred_at > stale else GOOD,
+                                opening.occurred_at))
     drift_levels = []
     for o in ld.objects:
         if o.ln == "SOPM1" and o.namespace and o.name.endswith(("Wrn", "Alm")):
             param, suffix = o.name[:-3], o.name[-3:]
+            param = PARAMETER_OF.get(param, param)
             level = view.alarms.get(param, "none")
             drift_levels.append(level)
             active = level in ("warning", "alarm") if suffix == "Wrn" else level == "alarm"

@@ -40,9 +40,11 @@ def _fit_view(fit: FitRow | None) -> FitView | None:
         return None
     chars = fit.characteristics or (fit.result or {}).get("characteristics") or {}
     tm = chars.get("operating_time_s")
+    latch = chars.get("latch_time_s")
     return FitView(parameters=dict(fit.parameters or {}), identifiable=fit.identifiable,
                    occurred_at=fit.operation.occurred_at,
-                   operating_time_s=float(tm) if isinstance(tm, (int, float)) else None)
+                   operating_time_s=float(tm) if isinstance(tm, (int, float)) else None,
+                   latch_time_s=float(latch) if isinstance(latch, (int, float)) else None)
 
 
 class OperatingTimeCache:

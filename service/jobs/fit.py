@@ -225,7 +225,12 @@ def update_drift(session, *, breaker_id: int, options: JobOptions | None = None,
     for parameter in settings.watched:
         row, state = _drift_state(session, breaker_id, parameter, settings)
         since = state.last_time or breaker.baseline_reset_at
-        history = crud.good_parameter_history(session, breaker_id=breaker_id, name=parameter, since=since)
+        from service.storage.crud_vibration import WATCHABLE, characteristic_history
+
+        if parameter in WATCHABLE:  # the vibration's latch time, buffer ratio: in the characteristics, not fitted
+            history = characteristic_history(session, breaker_id=breaker_id, name=parameter, since=since)
+        else:
+            history = crud.good_parameter_history(session, breaker_id=breaker_id, name=parameter, since=since)
         temps = operation_temperatures(session, {pv.operation_id for pv in history})
         for pv in history:
             if state.last_time is not None and (pv.occurred_at, pv.operation_id) <= (state.last_time, state.last_operation_id or 0):

@@ -39,12 +39,22 @@ HISTORY_FITS = 1000
 
 
 def _history(session, breaker: BreakerRow, parameter: str):
-    """The parameter's last ``HISTORY_FITS`` good fits since the baseline reset, oldest first:
-    the tail of what the detector was fed."""
+    """The parameter's last ``HISTORY_FITS`` good fits since the baseline reset or the last
+    logged maintenance touching it (service/storage/maintenance.py), oldest first: the tail of
+    what the detector was fed."""
     from service.alarms import FitObservation
 
-    rows = crud.good_parameter_history(session, breaker_id=breaker.id, name=parameter,
-                                       since=breaker.baseline_reset_at, last=HISTORY_FITS)
+    from service.storage.crud_vibration import WATCHABLE, characteristic_history
+    from service.storage.maintenance import restart_time
+
+    since = [t for t in (breaker.baseline_reset_at, restart_time(session, breaker.id, parameter)) if t is not None]
+    # the latest of the baseline reset and the last logged maintenance touching the parameter
+    if parameter in WATCHABLE:  # the vibration's latch time, buffer ratio: in the characteristics, not fitted
+        rows = characteristic_history(session, breaker_id=breaker.id, name=parameter,
+                                      since=max(since) if since else None)[-HISTORY_FITS:]
+    else:
+        rows = crud.good_parameter_history(session, breaker_id=breaker.id, name=parameter,
+                                           since=max(since) if since else None, last=HISTORY_FITS)
     temps = operation_temperatures(session, {r.operation_id for r in rows})
     return [FitObservation(operation_id=r.operation_id, time=r.occurred_at, value=r.value,
                            ci95=(r.ci_low, r.ci_high) if r.ci_low is not None and r.ci_high is not None else None,

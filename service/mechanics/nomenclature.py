@@ -20,6 +20,8 @@ UNITS = {
     "BC": "–",    # J2/J1: inertia factor (a ratio)
     "CC": "s⁻²",  # (TCf + kO·xO0·rO)/J2: closing resistance factor
     "DC": "s⁻²",  # kO·rO²/J2 = AO, seen while closing
+    "latch_time_s": "s",  # the vibration's first shock to the start of motion (service.vibration), not fitted
+    "buffer_ratio": "–",  # the vibration's buffer shock over the fitted travel's arrival at α0 (service.vibration)
 }
 
 # Each parameter in words (docs/models.md's table, shortened to what an engineer calls it).
@@ -33,6 +35,8 @@ NAMES = {
     "BC": "inertia ratio",
     "CC": "closing resistance",
     "DC": "opening spring stiffness seen while closing",
+    "latch_time_s": "trip latch time",
+    "buffer_ratio": "buffer shock timing against the travel",
 }
 
 

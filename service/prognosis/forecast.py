@@ -36,7 +36,7 @@ from service.alarms.observation import FitObservation
 from service.alarms.state import DriftState
 from service.breaker_limits import ParameterLimit
 from service.prognosis.averaging import pseudo_bma_plus_weights
-from service.prognosis.changepoint import fit_change_point
+from service.prognosis.bocpd import fit_change_points
 from service.prognosis.dates import date_quantiles, recent_gaps
 from service.prognosis.dates import operation_rate as renewal_rate
 from service.prognosis.mixture import Mixture
@@ -47,7 +47,7 @@ from service.prognosis.paths import (
     lfo_log_density,
     shape_column,
 )
-from service.prognosis.wiener import fit_wiener
+from service.prognosis.wiener import SLOWING_GRID, fit_stochastic, share_draws
 
 MODEL = ("linear and power-law degradation paths (Gebraeel et al. 2005), a Wiener/gamma process with its "
          "diffusion from the history (Si et al. 2012; van Noortwijk 2009) and a line since the last change "
@@ -65,7 +65,6 @@ DAYS_PER_YEAR = 365.25
 # probability 6e-5, so a basis of 1 000 fits loses 0.06 good ones on average.
 REJECT_Z = 4.0
 FAN_POINTS = 41
-RECENT_MIN = 20
 # Fits before the change point that anchor the path's start (a drift from the healthy level):
 # the baseline window's size, enough to fix that level to sd/sqrt(200).
 PRE_FITS = 200
@@ -123,6 +122,9 @@ class Prognosis:
     paths: dict = field(default_factory=dict)
     seasonal: bool = False
     low_frequency_sd: float | None = None
+    change_before_crossing: float | None = None
+    hazard_per_operation: float | None = None
+    notes: list = field(default_factory=list)
 
 
 def compensated(state: DriftState, history: Sequence[FitObservation]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -206,6 +208,7 @@ def prognose(state: DriftState, history: Sequence[FitObservation], limit: Parame
                   paths=_weights_by_label(fit),
                   seasonal=fit.seasonal, low_frequency_sd=fit.low_frequency_sd)
     ops = [mix.crossing_quantile(bound, direction, p, n_now=n_now, horizon=horizon) for p in QUANTILES]
+    common.update(change_words(fit, history, bound, direction, model.centre))
     ahead, cdf = mix.crossing_cdf(bound, direction, n_now=n_now, horizon=horizon)
     p_within = float(np.interp(horizon, ahead, cdf))
     years = f"{horizon_years:g} years" if rate else f"{ENDURANCE_OPERATIONS:,} operations"
@@ -239,33 +242,62 @@ def prognose(state: DriftState, history: Sequence[FitObservation], limit: Parame
         reason="the trend is past the limit now: service is due" if past else "")
 
 
+# A level step is told in words when it is this many of its own sds: a normal run-to-run scatter
+# reaches it with probability 6e-5 (as REJECT_Z).
+STEP_Z = 4.0
+
+
+def change_words(fit: PathsFit, history: list, bound: float, direction: str, centre: float) -> dict:
+    """The change-point family's part of the answer: the chance of a change of pace before the
+    crossing (its segments' simulated share, averaged with their weights), the learnt hazard, and
+    a level step with no maintenance logged, in words (the history starts at the last logged
+    event, so any step inside it was not logged)."""
+    cp = fit.change
+    out: dict = {"notes": []}
+    if cp is None:
+        return out
+    out["hazard_per_operation"] = round(cp.hazard, 6)
+    segs = [(c, w) for c, w in zip(fit.candidates, fit.weights) if getattr(c, "kind", "") in ("flat", "sloped")
+            and w > 1e-3]
+    total = sum(w for _, w in segs)
+    if total > 0:
+        out["change_before_crossing"] = round(sum(w * c.simulated(bound, direction)[2] for c, w in segs) / total, 3)
+    if cp.step is not None and cp.step_sd and abs(cp.step) >= STEP_Z * cp.step_sd and cp.last_change is not None:
+        i = int(fit_index(fit, cp.last_change))
+        if 0 <= i < len(history):
+            when = history[i].time.strftime("%Y-%m-%d")
+            rel = cp.step / abs(centre) * 100.0  # of the baseline
+            out["notes"].append(
+                f"a level step of {rel:+.1f} % on {when} (operation {history[i].operation_id}) with no maintenance "
+                f"logged: it is read as a real change of the mechanism and stays in the trend; if the sensor was "
+                f"remounted or recalibrated, or the part serviced, log it and the prognosis restarts there")
+    return out
+
+
+def fit_index(fit: PathsFit, window_index: int) -> int:
+    """The history index of the change-point window's fit ``window_index`` (the window is the
+    kept fits of the basis plus the fits before it)."""
+    return int(fit.window_n[window_index]) if fit.window_n is not None else window_index
+
+
 def _whole(x: float) -> int:
     """A crossing quantile in whole operations: the first opening by which it has crossed."""
     return math.ceil(x - 1e-9) if x > 0 else 0
 
 
-def _label(c) -> str:
-    if hasattr(c, "kind"):
-        return f"{c.kind} process (diffusion ratio {c.ratio:g})"
-    if c.variant == "since the last change":
-        return "line since the last change of slope"
-    return f"{c.variant} power {c.shape:g}"
-
-
 def _weights_by_label(fit) -> dict:
-    out: dict = {}
-    for c, w in zip(fit.candidates, fit.weights):
-        out[_label(c)] = out.get(_label(c), 0.0) + float(w)
-    return {k: round(v, 4) for k, v in out.items()}
+    return dict(fit.family_weights)
 
 
 @dataclass(frozen=True)
 class PathsFit:
-    """The candidate paths of one basis and their stacking weights.
+    """The candidate paths of one basis and their weights.
 
     n, y : the basis's operation counts and compensated values kept (gross errors dropped)
     seasonal : the annual harmonics were fitted (no temperature, a year of history)
     low_frequency_sd : sd of the residual's slow component carried by the interval [unit], or None
+    family_weights : each family's pseudo-BMA+ weight, by name
+    change : the change-point family's summary (the learnt hazard, the last change's step), or None
     """
 
     candidates: list
@@ -275,24 +307,101 @@ class PathsFit:
     basis_operations: int
     seasonal: bool
     low_frequency_sd: float | None
+    family_weights: dict = field(default_factory=dict)
+    change: object = None
+    window_n: np.ndarray | None = None
 
 
 def _day_of_year(times) -> np.ndarray:
     return np.array([t.timetuple().tm_yday - 1 + (t.hour + t.minute / 60.0) / 24.0 for t in times])
 
 
-def fit_paths(state: DriftState, history: list, start: int, *, monotone: bool = False) -> PathsFit:
-    """Fit every candidate path to the basis (``history[start:]``) and weight them by pseudo-BMA+.
+@dataclass
+class Basis:
+    """The window the candidates are drawn through, and its nuisance columns.
 
-    Families: the stochastic path (wiener.py; Wiener and, when ``monotone``, gamma sharing its
-    weight), the line since the last change of slope (changepoint.py), and each power-law shape (paths.SHAPES), either continuing from the level before
-    the change point ("anchored": a drift that starts from the healthy baseline, which fixes
-    the path's start with the pre-change fits) or with a level of its own after it ("free": a
-    step, then a drift). Without a temperature channel and with a year of history since the
-    reset, the annual cycle (cos, sin of the day of year, centred on the baseline window so that
-    the level is the one at the baseline's season) is fitted beside the path. With less than a
-    year, the residual's slow component (an AR(1) from its autocorrelation) enters the errors'
-    covariance and the level's variance instead of being read as trend.
+    n, y, w, dt : operation counts [operations], compensated values [unit], relative precisions
+    [-], the temperature slope error's column [K]; in_basis : the fits since the basis's start
+    (the others are the PRE_FITS before the change point); keep : the fits kept after the gross
+    errors are dropped; d0, scale_ops : the drift's origin and the basis's length S [operations]
+    """
+
+    n: np.ndarray
+    y: np.ndarray
+    w: np.ndarray
+    dt: np.ndarray
+    in_basis: np.ndarray
+    harmonics: list
+    d0: float
+    start: int
+    scale_ops: float
+    seasonal: bool
+    common_var: float
+    bend: np.ndarray
+    bend_var: float
+    sd: float
+    dof: float
+    centre: float
+    harmonic_precision: float = 0.0
+    keep: np.ndarray | None = None
+    lf_sd: float | None = None
+
+    @property
+    def variants(self) -> tuple:
+        return ("free", "anchored") if (~self.in_basis).any() else ("free",)
+
+    @property
+    def first_pred(self) -> int:
+        """The first kept fit each candidate is scored on: MIN_BASIS into the basis."""
+        return int(np.flatnonzero(self.in_basis[self.keep])[0]) + MIN_BASIS
+
+    def design(self, k, variant, with_harmonics=True):
+        """(design [m, p], prior precisions [p], in sigma^-2 units, 0 flat) of the curve of
+        shape ``k`` and ``variant`` (paths.py)."""
+        n, in_basis = self.n, self.in_basis
+        cols = [np.ones_like(n), shape_column(n, self.d0, self.scale_ops, k) * in_basis]
+        prec = [0.0, 0.0]
+        if with_harmonics and self.harmonics and (self.seasonal or self.harmonic_precision > 0):
+            cols += self.harmonics
+            prec += [0.0 if self.seasonal else self.harmonic_precision] * 2
+        if variant == "free" and (~in_basis).any():
+            cols.append((~in_basis).astype(float))
+            prec.append(0.0)
+        if self.common_var > 0:
+            cols.append(self.dt)
+            prec.append(self.sd ** 2 / self.common_var)
+        if self.bend_var > 0:
+            cols.append(self.bend)
+            prec.append(self.sd ** 2 / self.bend_var)
+        return np.stack(cols, axis=1), np.array(prec)
+
+    def fit(self, k, variant, sel, with_harmonics=True):
+        x, prec = self.design(k, variant, with_harmonics)
+        return fit_path(x[sel], self.y[sel], self.w[sel], prec, prior_sd=self.sd, prior_dof=self.dof, shape=k,
+                        scale_ops=self.scale_ops, d0=self.d0)
+
+    def shared(self) -> list:
+        """Nuisances shared by the stochastic and change-point paths, on the kept fits: (column,
+        prior variance in sigma^2 units, inf flat) of the harmonics and the temperature slope's
+        error and bend."""
+        keep, out = self.keep, []
+        if self.harmonics and (self.seasonal or self.harmonic_precision > 0):
+            out += [(h_[keep], math.inf if self.seasonal else 1.0 / self.harmonic_precision) for h_ in self.harmonics]
+        if self.common_var > 0:
+            out.append((self.dt[keep], self.common_var / self.sd ** 2))
+        if self.bend_var > 0:
+            out.append((self.bend[keep], self.bend_var / self.sd ** 2))
+        return out
+
+
+def make_basis(state: DriftState, history: list, start: int) -> Basis:
+    """The window (the basis and up to PRE_FITS fits before it), its compensated values, its
+    nuisance columns, and the gross errors dropped.
+
+    Without a temperature channel and with a year of history since the reset, the annual cycle
+    (cos, sin of the day of year, centred on the baseline window so that the level is the one at
+    the baseline's season) is fitted beside the path. With less than a year, the residual's slow
+    component bounds the cycle's size (REML) instead of being read as trend.
     """
     model = state.model
     y_all, w_all, dt_all = compensated(state, history)
@@ -301,123 +410,126 @@ def fit_paths(state: DriftState, history: list, start: int, *, monotone: bool = 
     seasonal = not model.compensated and span_days >= DAYS_PER_YEAR
     lo = 0 if seasonal else max(0, start - PRE_FITS)
     n, y, w, dt = n_all[lo:], y_all[lo:], w_all[lo:], dt_all[lo:]
-    harmonics, harmonic_precision = [], 0.0
-    if True:  # the annual harmonics: fitted without temperature, a bound on the slow remainder with it
-        angle = 2.0 * np.pi * _day_of_year([o.time for o in history]) / DAYS_PER_YEAR
-        ids = {w_[0] for w_ in state.window}
-        ref = np.array([o.operation_id in ids for o in history]) if ids else np.arange(len(history)) < model.n
-        if not ref.any():
-            ref = np.arange(len(history)) < model.n
-        harmonics = [(col - col[ref].mean())[lo:] for col in (np.cos(angle), np.sin(angle))]
-    common_var = model.slope_var if model.compensated else 0.0
+    angle = 2.0 * np.pi * _day_of_year([o.time for o in history]) / DAYS_PER_YEAR
+    ids = {w_[0] for w_ in state.window}
+    ref = np.array([o.operation_id in ids for o in history]) if ids else np.arange(len(history)) < model.n
+    if not ref.any():
+        ref = np.arange(len(history)) < model.n
+    harmonics = [(col - col[ref].mean())[lo:] for col in (np.cos(angle), np.sin(angle))]
     # Temperature's effect may bend (oil viscosity is convex in T; a heater holds the oil above a
     # floor): a second slope above the reference temperature, (T - T_ref)+ [K] scaled like dt,
-    # with a N(0, slope^2) prior (a bend as large as the learnt slope itself). Two slopes meeting
-    # at the reference temperature leave the level there, the one the limit refers to, unchanged.
+    # with a N(0, slope^2) prior (a bend as large as the learnt slope itself).
     bend = np.maximum(dt, 0.0)
-    bend_var = (model.slope ** 2 + model.slope_var) if model.compensated and (bend > 0).any() else 0.0
-    d0 = float(start) - 1.0  # d = 1 at the basis's first fit
-    scale_ops = max(float(len(history) - start), 1.0)
-    in_basis = n >= start
-    variants = ("free", "anchored") if (~in_basis).any() else ("free",)
-
-    def design(k, variant, with_harmonics=True):
-        cols = [np.ones_like(n), shape_column(n, d0, scale_ops, k) * in_basis]
-        prec = [0.0, 0.0]
-        if with_harmonics and harmonics and (seasonal or harmonic_precision > 0):
-            cols += harmonics
-            prec += [0.0 if seasonal else harmonic_precision] * 2
-        if variant == "free" and (~in_basis).any():
-            cols.append((~in_basis).astype(float))
-            prec.append(0.0)
-        if common_var > 0:
-            cols.append(dt)
-            prec.append(model.sd ** 2 / common_var)
-        if bend_var > 0:
-            cols.append(bend)
-            prec.append(model.sd ** 2 / bend_var)
-        return np.stack(cols, axis=1), np.array(prec)
-
-    def fit(k, variant, sel, with_harmonics=True):
-        x, prec = design(k, variant, with_harmonics)
-        return fit_path(x[sel], y[sel], w[sel], prec, prior_sd=model.sd, prior_dof=model.dof, shape=k,
-                        scale_ops=scale_ops, d0=d0)
-
+    b = Basis(n=n, y=y, w=w, dt=dt, in_basis=n >= start, harmonics=harmonics, d0=float(start) - 1.0, start=start,
+              scale_ops=max(float(len(history) - start), 1.0), seasonal=seasonal,
+              common_var=model.slope_var if model.compensated else 0.0, bend=bend,
+              bend_var=(model.slope ** 2 + model.slope_var) if model.compensated and (bend > 0).any() else 0.0,
+              sd=model.sd, dof=float(model.dof), centre=model.centre)
     keep = np.ones(len(n), dtype=bool)
-    first = fit(1.0, "free", keep, seasonal)
-    resid = y - design(1.0, "free", seasonal)[0] @ first.beta
+    first = b.fit(1.0, "free", keep, seasonal)
+    resid = y - b.design(1.0, "free", seasonal)[0] @ first.beta
     # Gross fit errors (about 1 % of fits, 5-30 % off) would pull a least-squares line: drop the
     # fits beyond REJECT_Z posterior sds and draw it again.
     keep = np.abs(resid) * np.sqrt(w) <= REJECT_Z * first.sd
-    if (in_basis & keep).sum() < MIN_BASIS:
+    if (b.in_basis & keep).sum() < MIN_BASIS:
         keep = np.ones(len(n), dtype=bool)
-    lf_sd = None
+    b.keep = keep
     if not seasonal and low_frequency(resid[keep]) is not None:
-        # Less than a year without temperature, and the residual's autocorrelation shows a slow
-        # component: the annual cycle cannot be fitted, but its size can be bounded. Each
-        # harmonic's coefficient gets a N(0, v) prior (a cycle of amplitude A has variance
+        # Each harmonic's coefficient gets a N(0, v) prior (a cycle of amplitude A has variance
         # A^2 / 2 = v), v by restricted maximum likelihood (Patterson & Thompson 1971), and the
         # level is marginalised over the part of the cycle the history cannot pin down.
-        x, _ = design(1.0, "free", False)
+        x, _ = b.design(1.0, "free", False)
         v = cycle_variance(x[keep], np.stack(harmonics, axis=1)[keep], y[keep], w[keep], model.sd ** 2)
-        harmonic_precision, lf_sd = model.sd ** 2 / v, math.sqrt(v)
-    cands, lps = [], []
-    first_pred = int(np.flatnonzero(in_basis[keep])[0]) + MIN_BASIS
-    for variant in variants:
+        b.harmonic_precision, b.lf_sd = model.sd ** 2 / v, math.sqrt(v)
+    return b
+
+
+def curve_families(b: Basis) -> list:
+    """The power-law curves (paths.py), free and anchored, each a family of one: [(name,
+    [(candidate, 1.0)], one-step log densities)]."""
+    out = []
+    keep = b.keep
+    for variant in b.variants:
         for k in SHAPES:
-            if k < 1 and variant == "anchored":
-                # A slowing path anchored at the healthy level is steepest at the change point:
-                # it reads a late change point's drop as a slowing leak. Slowing paths are free.
-                continue
-            c = fit(k, variant, keep)
-            cands.append(replace(c, variant=variant))
-            x, prec = design(k, variant)
+            c = b.fit(k, variant, keep)
+            x, prec = b.design(k, variant)
             prec = np.where(prec > 0, prec, FLAT_PRECISION)
-            lps.append(lfo_log_density(np.ascontiguousarray(x[keep]), y[keep], w[keep], prec, model.sd ** 2,
-                                       float(model.dof), first_pred))
-    # Nuisances shared by the stochastic and change-point paths: (column, prior variance in
-    # sigma^2 units, inf flat) of the harmonics, the temperature slope's error.
-    shared = []
-    if harmonics and (seasonal or harmonic_precision > 0):
-        shared += [(h_[keep], math.inf if seasonal else 1.0 / harmonic_precision) for h_ in harmonics]
-    if common_var > 0:
-        shared.append((dt[keep], common_var / model.sd ** 2))
-    if bend_var > 0:
-        shared.append((bend[keep], bend_var / model.sd ** 2))
-    # The stochastic paths (wiener.py): the level wanders everywhere (a step at the change point
-    # too), the drift acts from the basis's start.
-    nuis = shared
-    wfit, wlp, _ = fit_wiener(n[keep], y[keep], w[keep], np.stack([c_ for c_, _ in nuis], axis=1) if nuis else None,
-                              [v_ for _, v_ in nuis], start=float(start), scale_ops=scale_ops, prior_sd=model.sd,
-                              prior_dof=float(model.dof), first=first_pred)
+            lp = lfo_log_density(np.ascontiguousarray(x[keep]), b.y[keep], b.w[keep], prec, b.sd ** 2, b.dof,
+                                 b.first_pred)
+            out.append((f"{variant} power {k:g}", [(replace(c, variant=variant), 1.0)], lp))
+    return out
+
+
+def stochastic_families(b: Basis, *, monotone: bool) -> list:
+    """The Wiener path with a wandering drift, and the slowing path on the clock n^k (wiener.py),
+    each with a gamma twin for a one-sided limit sharing its weight equally."""
+    keep, shared = b.keep, b.shared()
+    nuis = np.stack([c_ for c_, _ in shared], axis=1) if shared else None
+    var = [v_ for _, v_ in shared]
+    kw = dict(start=float(b.start), scale_ops=b.scale_ops, prior_sd=b.sd, prior_dof=b.dof, first=b.first_pred)
     kinds = ("wiener", "gamma") if monotone else ("wiener",)
-    families = [[(c_, 1.0)] for c_ in cands] + [[(replace(wfit, kind=k_, _draws={}), 1.0 / len(kinds)) for k_ in kinds]]
-    lps.append(wlp)
-    # The path since the last change of slope found on the history (changepoint.py): a family of
-    # lines, one per change point, weighted within it by the change point's posterior.
-    cp = fit_change_point(n[keep], y[keep], w[keep], np.stack([c_ for c_, _ in shared], axis=1) if shared else None,
-                          np.array([1.0 / v_ for _, v_ in shared]), d0=d0, scale_ops=scale_ops,
-                          prior_sd=model.sd, prior_dof=float(model.dof), first=first_pred)
+    out = []
+    for name, fam in (("stochastic", fit_stochastic(b.n[keep], b.y[keep], b.w[keep], nuis, var, **kw)),
+                      ("slowing", fit_stochastic(b.n[keep], b.y[keep], b.w[keep], nuis, var, **kw,
+                                                 drift_grid=(0.0,), clock_powers=SLOWING_GRID))):
+        members = [(replace(c_, kind=k_, variant=name, sim_draws=nd, _draws={}), wt / len(kinds))
+                   for c_, wt, nd in zip(fam.components, fam.weights, share_draws(fam.weights / len(kinds)))
+                   for k_ in kinds]
+        out.append((name, members, fam.log_density))
+    return out
+
+
+def change_point_family(b: Basis):
+    """The segments since the last change found on the history (bocpd.py), or None.
+
+    The nuisances (the annual harmonics, the temperature slope's error and bend) are global, not
+    a segment's: they are taken out first, at their values in the straight line's fit over the
+    whole window (their posterior mean), so a segment never re-learns a season."""
+    keep = b.keep
+    x, prec = b.design(1.0, "free")
+    line = b.fit(1.0, "free", keep)
+    y = b.y[keep].copy()
+    nuis_cols = [j for j in range(2, x.shape[1]) if not (b.variants == ("free", "anchored") and j == _level_before(b))]
+    for j in nuis_cols:
+        y -= line.beta[j] * x[keep][:, j]
+    return fit_change_points(b.n[keep], y, b.w[keep], None, [], centre=b.centre, scale_ops=b.scale_ops,
+                             prior_sd=b.sd, prior_dof=b.dof, first=b.first_pred, d0=b.d0)
+
+
+def _level_before(b: Basis) -> int:
+    """The column of the free curve's own level before the change point (a segment's business,
+    not a nuisance)."""
+    x, _ = b.design(1.0, "free")
+    before = (~b.in_basis).astype(float)
+    for j in range(2, x.shape[1]):
+        if np.array_equal(x[:, j], before):
+            return j
+    return -1
+
+
+def fit_paths(state: DriftState, history: list, start: int, *, monotone: bool = False) -> PathsFit:
+    """Every candidate family through the basis (``history[start:]``), weighted by pseudo-BMA+
+    of their one-step predictions: the curves (paths.py), the stochastic and slowing paths
+    (wiener.py; gamma twins when ``monotone``), the change-point segments (bocpd.py)."""
+    b = make_basis(state, history, start)
+    families = curve_families(b) + stochastic_families(b, monotone=monotone)
+    cp = change_point_family(b)
     if cp is not None:
-        lps.append(cp[1])
-        families.append([(replace(f_, variant="since the last change"), wt) for f_, wt in cp[0]])
-    # Each family (a curve, the stochastic path, the change-point path) is weighted by its
-    # predictions (pseudo-BMA+); within a family, by its own weights.
-    fw = pseudo_bma_plus_weights(recent_columns(np.array(lps)))
-    cands = [c_ for fam in families for c_, _ in fam]
-    weights = np.array([f_ * wt for f_, fam in zip(fw, families) for _, wt in fam])
-    sel = keep & in_basis
-    return PathsFit(cands, weights, n[sel], y[sel], int(sel.sum()), seasonal, lf_sd)
+        families.append(("change points", list(zip(cp.components, cp.weights)), cp.log_density))
+    fw = pseudo_bma_plus_weights(scored_columns(np.array([lp for _, _, lp in families])))
+    cands = [c_ for _, fam, _ in families for c_, _ in fam]
+    weights = np.array([f_ * wt for f_, (_, fam, _) in zip(fw, families) for _, wt in fam])
+    sel = b.keep & b.in_basis
+    return PathsFit(cands, weights, b.n[sel], b.y[sel], int(sel.sum()), b.seasonal, b.lf_sd,
+                    family_weights={name: round(float(f_), 4) for f_, (name, _, _) in zip(fw, families)}, change=cp,
+                    window_n=b.n[b.keep])
 
 
-def recent_columns(lp: np.ndarray) -> np.ndarray:
-    """The later half of the columns every candidate predicts (at least RECENT_MIN of them): the
-    weights ask which path predicts the breaker as it is now, so a path that fitted the early
-    basis well but not what followed a change (a leak that stopped, a seal that tore) loses."""
-    idx = np.flatnonzero(np.isfinite(lp).all(axis=0))
-    if idx.size > 2 * RECENT_MIN:
-        idx = idx[max(idx.size // 2, 0):]
-    return lp[:, idx]
+def scored_columns(lp: np.ndarray) -> np.ndarray:
+    """The one-step predictions every family makes (the columns finite for all): the weights are
+    pseudo-BMA+ over the whole leave-future-out sequence (Buerkner et al. 2020), not a part chosen
+    after the fact."""
+    return lp[:, np.isfinite(lp).all(axis=0)]
 
 
 def low_frequency(resid: np.ndarray) -> tuple[float, float, float] | None:

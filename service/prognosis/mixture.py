@@ -92,7 +92,7 @@ class Mixture:
         out = []
         for p in ps:
             a, b = lo.copy(), hi.copy()
-            for _ in range(36):  # 24 scales / 2^36: far below a fit's resolution
+            for _ in range(30):  # 24 scales / 2^30: far below a fit's resolution
                 mid = 0.5 * (a + b)
                 below = (w * special.stdtr(dof, (mid - mean) / scale)).sum(axis=0) < p
                 a, b = np.where(below, mid, a), np.where(below, b, mid)

@@ -92,14 +92,15 @@ def summary(p: dict) -> str:
             when = f", {date(d['p05'])}" if d and d.get("p05") else ""
             early = f" At the earliest (5 %): in {operations(q['p05'], par)}{when}."
         return (f"{who_cap}: no trend. {now[0].upper() + now[1:]}; {lim}. The slope's 90 % interval holds "
-                f"zero: not expected to reach its limit within {horizon_text(p)} at this rate.{early}")
+                f"zero: not expected to reach its limit within {horizon_text(p)} at this rate.{early}"
+                + change_text(p))
     if not q or q.get("median") is None:
         early = ""
         if q and q.get("p05") is not None:  # the median lies beyond the horizon, the 5 % quantile within
             when = f", {date(d['p05'])}" if d and d.get("p05") else ""
             early = f" At the earliest (5 %): in {operations(q['p05'], par)}{when}."
         return (f"{who_cap}: not expected to reach its limit within {horizon_text(p)} at this rate. "
-                f"{now[0].upper() + now[1:]}; {lim}.{early}")
+                f"{now[0].upper() + now[1:]}; {lim}.{early}" + change_text(p))
     hi = operations(q["p95"], par) if q.get("p95") is not None else f"beyond {horizon_text(p)}"
     span = f"{int(round(q['p05'])):,}–{hi}" if q.get("p95") is not None else f"{operations(q['p05'], par)} to {hi}"
     when = ""
@@ -111,7 +112,20 @@ def summary(p: dict) -> str:
                 f"{now[0].upper() + now[1:]}; {lim}. {action(par)}")
     return (f"{who_cap} reaches its limit in about {operations(q['median'], par)}{when}; 90 % interval "
             f"{span}. {now[0].upper() + now[1:]}; {lim}. Trend since the {p['basis']}, "
-            f"{p['basis_operations']} fits.")
+            f"{p['basis_operations']} fits." + change_text(p))
+
+
+def change_text(p: dict) -> str:
+    """The change points' part in words: the chance of a change of pace before the crossing, and
+    a level step with no maintenance logged."""
+    out = ""
+    c = p.get("change_before_crossing")
+    q = p.get("operations_to_limit")
+    if c is not None and q and q.get("median") is not None and c >= 0.005:
+        out += f" Chance of a change of pace before the crossing: {c * 100:.0f} %."
+    for note in p.get("notes") or []:
+        out += f" Note: {note}."
+    return out
 
 
 def fleet_text(p: dict) -> str:

@@ -90,6 +90,7 @@ class ReportContent:
     method: list[tuple[str, str]]
     file_problem: str = ""
     limit_words: dict[str, str] = field(default_factory=dict)  # parameter -> its maintenance limit in words
+    maintenance: list = field(default_factory=list)  # the maintenance log, newest first (issue 50)
 
 
 def _baselines(session, breaker_id: int) -> dict[str, float | None]:
@@ -282,4 +283,12 @@ def gather(session, *, breaker: BreakerRow, settings, window: Window = Window())
         trends=_trends(session, breaker, window, baselines, file_model, alarms),
         alarms=alarms, alarm_actions=actions, active_alarms=active, prognoses=progs,
         diagnosis=_diagnosis(session, breaker.id), method=method, file_problem=file_problem,
-        limit_words={k: lim.words(UNITS.get(k, "")) for k, lim in (file_model.limits.items() if file_model else [])})
+        limit_words={k: lim.words(UNITS.get(k, "")) for k, lim in (file_model.limits.items() if file_model else [])},
+        maintenance=_maintenance(session, breaker.id))
+
+
+def _maintenance(session, breaker_id: int) -> list:
+    """The breaker's maintenance log (service/storage/maintenance.py), newest first."""
+    from service.storage.maintenance import list_events
+
+    return list_events(session, breaker_id)

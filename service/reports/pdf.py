@@ -229,6 +229,21 @@ def _prognosis_section(pdf: ReportPDF, c: ReportContent):
                "temperature-compensated fits the trend is drawn through; dotted line: the latest fit.")
 
 
+def _maintenance_section(pdf: ReportPDF, c: ReportContent):
+    """The maintenance log (issue 50): each entry restarts what it touches."""
+    pdf.heading("Maintenance log")
+    if not c.maintenance:
+        pdf.para("No maintenance logged: a level step in a trend stays a step (the breaker page's \"Maintenance "
+                 "log\" or POST /api/v1/breakers/{name}/maintenance).")
+        return
+    rows = [(f"{e.done_at:%Y-%m-%d %H:%M} UTC", e.kind, e.done_by,
+             "every parameter" if "*" in (e.parameters or []) else ", ".join(e.parameters or []), e.note or "—")
+            for e in c.maintenance]
+    pdf.grid(("Done", "What", "By", "Restarts", "Note"), rows, (30, 40, 30, 36, 44), size=7)
+    pdf.para("An entry restarts the baseline, the alarms and the prognosis of the parameters it touches at the time "
+             "the work was done.", size=7)
+
+
 def _limit_cell(c: ReportContent, p) -> str:
     """The limit in words with its value(s) and unit: "25 % below the baseline: 31.78 s⁻¹"."""
     values = [lim["value"] for lim in (p.limits or []) if lim.get("value") is not None] or (
@@ -293,6 +308,9 @@ def render(c: ReportContent) -> bytes:
         op = c.latest[kind]
         if op is not None and op.curve is None and op.curve_note:
             pdf.para(f"Latest {'opening' if kind == 'open' else 'closing'}: no curve, {op.curve_note}.", size=7.5)
+    from .vibration_section import vibration_section  # the trip latch and the coil currents (issue 49)
+
+    vibration_section(pdf, c)
     if c.trends:
         pdf.figure(figures.trends_png(c.trends), heading="Fitted parameters over time", caption=
                    "Each fitted parameter with its 95 % interval (band), the drift detector's baseline (dashed) and "
@@ -305,6 +323,7 @@ def render(c: ReportContent) -> bytes:
         pdf.para(f"No fitted parameter in {c.window.words()}.")
     _alarm_section(pdf, c)
     _prognosis_section(pdf, c)
+    _maintenance_section(pdf, c)
     _diagnosis_section(pdf, c)
     pdf.heading("Method and version")
     pdf.key_values(c.method)

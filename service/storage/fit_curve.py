@@ -20,10 +20,12 @@ def fit_curve(fit, t: np.ndarray, breaker) -> tuple[np.ndarray, np.ndarray] | No
     if fit.window_start_s is None or fit.onset_delay_s is None:
         return None
     try:
-        structure = (getattr(fit, "result", None) or {}).get("structure") or {}
+        result = getattr(fit, "result", None) or {}
+        structure = result.get("structure") or {}
         fv = fitted_travel(fit.kind, fit.parameters, fit.window_start_s, fit.onset_delay_s, t, breaker,
                            dc_used=fit.dc_used, alpha0=(structure.get("alpha0") or {}).get("value"),
-                           co=(structure.get("CO") or {}).get("value"))
+                           co=(structure.get("CO") or {}).get("value"),
+                           zero_rad=float(result.get("zero_rad") or 0.0))
     except (KeyError, TypeError, ValueError):  # a fit of another model version: nothing to draw
         return None
     return np.asarray(t, float), fv

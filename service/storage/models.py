@@ -141,6 +141,17 @@ class FitRow(Base):
         None for a fit stored before it was recorded (its band is the idle samples' σ)."""
         return (self.result or {}).get("interval_noise")
 
+    @property
+    def model_bias(self) -> dict | None:
+        """The residual the fit repeats, apart from its interval (FitResult.model_bias); None for
+        a fit stored before it was recorded."""
+        return (self.result or {}).get("model_bias")
+
+    @property
+    def zero_rad(self) -> float | None:
+        """The transducer's zero the fit took off (FitResult.zero_rad) [rad]."""
+        return (self.result or {}).get("zero_rad")
+
 
 class DiagnosisRow(Base):
     """The sim-to-real gap diagnosis of one operation, computed on demand (one per operation)."""
@@ -253,6 +264,23 @@ class SpringReferenceRow(Base):
     closing_id: Mapped[int] = mapped_column(ForeignKey("operations.id", ondelete="CASCADE"))
     known_steps: Mapped[float] = mapped_column(Float)
     reading: Mapped[dict] = mapped_column(default=dict)
+    recorded_by: Mapped[str] = mapped_column(String(200))
+    recorded_at: Mapped[datetime] = mapped_column(default=utcnow)
+
+
+class MaintenanceEventRow(Base):
+    """One entry of the engineer's maintenance log (issue 50, docs/alarms.md "Maintenance log"):
+    ``kind`` (service.alarms.maintenance.KINDS), when it was done and by whom, and the
+    parameters it touches: their baseline, alarms and prognosis restart at ``done_at``."""
+
+    __tablename__ = "maintenance_events"
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    breaker_id: Mapped[int] = mapped_column(ForeignKey("breakers.id", ondelete="CASCADE"), index=True)
+    kind: Mapped[str] = mapped_column(String(64))
+    done_at: Mapped[datetime]
+    done_by: Mapped[str] = mapped_column(String(200))
+    note: Mapped[str] = mapped_column(String(500), default="")
+    parameters: Mapped[list] = mapped_column(default=list)
     recorded_by: Mapped[str] = mapped_column(String(200))
     recorded_at: Mapped[datetime] = mapped_column(default=utcnow)
 

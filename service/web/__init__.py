@@ -82,9 +82,15 @@ def mount_web(app: FastAPI) -> None:
     from .routes_setting import router as setting_router  # the operation page's commissioning button
 
     app.include_router(setting_router)
+    from .routes_maintenance import router as maintenance_router  # the breaker page's maintenance log
+
+    app.include_router(maintenance_router)
     from .routes_reports import router as reports_router  # the condition report and CSV exports
 
     app.include_router(reports_router)
+    from .routes_vibration import router as vibration_router  # the operation page's latch time and fingerprint
+
+    app.include_router(vibration_router)
     app.mount("/static", StaticFiles(directory=HERE / "static"), name="static")
 
     @app.exception_handler(auth.WebAuthError)

@@ -180,6 +180,9 @@ def breaker_page(request: Request, breaker_id: Id, user: Reader,
         from .routes_diagnoses import breaker_diagnosis_context
 
         ctx.update(breaker_diagnosis_context(request, session, b))
+        from .routes_maintenance import maintenance_context  # issue 50: the maintenance log card
+
+        ctx.update(maintenance_context(session, b))
     return page(request, "breaker.html", ctx)  # rendered with the connection back
 
 

@@ -49,11 +49,26 @@ def test_buffer_leak_lowers_do_by_a_quarter(fits):
     assert leak <= 0.75 * nominal
 
 
-def test_range_readaptation_reaches_true_eo_outside_table2(fits):
+def test_the_estimate_leaves_table2_where_the_true_eo_lies_outside_it(fits):
+    # The sample's EO is 1.2 % below Table 2's [4000, 6000]: the estimate follows it out (CMA-ES
+    # may already meet the noise floor at the range's edge; the polish then finishes the job).
     result, truth = fits["open-nominal"]
-    assert truth["params"]["EO"] < 4000  # outside Table 2's [4000, 6000]
+    assert truth["params"]["EO"] < 4000
+    assert result.parameters["EO"] < 4000
+    assert abs(result.parameters["EO"] - truth["params"]["EO"]) <= 3 * result.stderr["EO"]
+
+
+def test_range_readaptation_reaches_an_eo_far_outside_table2(breaker):
+    """25 % below Table 2's range no edge point meets the noise floor: the ranges move (paper
+    steps 5–6) until they hold the estimate, and it is the truth's."""
+    from drivers.synthetic import synthesize_capture
+
+    params = dict(breaker.design_parameters(), EO=3000.0)
+    cap, _ = synthesize_capture(breaker, "open", params, rng=np.random.default_rng(5))
+    result = fit_capture(cap, breaker, "open", seed=1)
     assert result.readaptations >= 1
-    assert result.ranges["EO"][0] < truth["params"]["EO"] < result.ranges["EO"][1]
+    assert result.ranges["EO"][0] < 3000.0 < result.ranges["EO"][1]
+    assert abs(result.parameters["EO"] - 3000.0) <= 3 * result.stderr["EO"]
 
 
 def test_same_seed_same_result(samples_dir, breaker):

@@ -2,7 +2,8 @@
 the sandwich of the residual it leaves, with that residual's AR(p) correlation
 (service/estimation/uncertainty.py), floored at the idle-noise one. Checked on least-squares
 problems whose answer is known in closed form; the coverage on repeated operations is measured by
-bench/interval_coverage.py."""
+bench/interval_repeat.py (and, for the estimator of the previous round,
+bench/interval_coverage.py)."""
 
 from __future__ import annotations
 

@@ -35,7 +35,7 @@ def test_fitted_parameters_and_drift_alarms_are_declared_hvcb_extensions():
     dev = ld()
     ext = [o for o in dev.objects if o.namespace]
     assert {o.name for o in ext} == {"AO", "BO", "DO", "EO", "AC", "BC", "CC", "DOWrn", "DOAlm", "BOWrn", "BOAlm",
-                                   "OpsToLim"}
+                                   "OpsToLim", "LatTm"}
     assert all(o.ln == "SOPM1" and o.namespace == pm.HVCB_NS for o in ext)
     refs = {p.reference: p for p in pm.points(dev)}
     for o in ext:

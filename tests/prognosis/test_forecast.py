@@ -110,3 +110,45 @@ def test_quantiles_are_whole_operations_and_the_5_percent_stays_within_the_horiz
     assert 0.05 <= p.probability_within_horizon < 0.5
     # the earliest crossing still stands, with its date
     assert p.date_to_limit is not None and p.date_to_limit.p05 is not None and p.date_to_limit.median is None
+
+
+def _series(values):
+    return [FitObservation(operation_id=i + 1, time=T0 + timedelta(days=i), value=float(v), ci95=(v - 0.4, v + 0.4),
+                           temperature=None) for i, v in enumerate(values)]
+
+
+def test_a_leak_that_stopped_is_not_given_a_due_date():
+    """A leak of 0.5 %/op for 30 openings, then it holds at 15 % down for 150 (issue 50): the
+    change points' flat segment and the drift's wander keep the 95 % quantile beyond the horizon."""
+    rng = np.random.default_rng(21)
+    d = np.arange(450, dtype=float)
+    level = 39.5 * (1 - 0.005 * np.clip(d - 270, 0, 30))
+    obs = _series(level * (1 + 0.01 * rng.standard_normal(d.size)))
+    state = detector(obs)
+    p = prognose(state, obs, LIMIT)
+    q = p.operations_to_limit
+    assert p.status in ("ok", "no trend") and (q is None or q.p95 is None), (p.status, q, p.paths)
+    assert p.paths["change points"] > 0.2 and p.hazard_per_operation is not None
+
+
+def test_an_unlogged_level_step_stays_a_step_and_is_said_in_words():
+    """A 6 % step down at opening 300 with no maintenance logged: the trend keeps it, and the
+    answer says the step was not logged and how to log it."""
+    from service.jobs.prognosis import as_json
+
+    rng = np.random.default_rng(22)
+    d = np.arange(400, dtype=float)
+    level = 39.5 * np.where(d >= 300, 0.94, 1.0)
+    obs = _series(level * (1 + 0.01 * rng.standard_normal(d.size)))
+    state = detector(obs)
+    p = prognose(state, obs, LIMIT)
+    note = next(n for n in p.notes if "level step" in n)
+    size = float(note.split("level step of ")[1].split(" %")[0])
+    assert "no maintenance logged" in note and abs(size - (-6.0)) <= 1.5, note  # 2 sd of two 20-fit lines
+    assert "operation 30" in note and "log it and the prognosis restarts there" in note
+    assert "Note: a level step" in as_json(p)["summary"]
+    # logged: the history the prognosis reads starts at the entry, and the step is gone from it
+    state2 = DriftState.new("DO", DriftSettings())
+    for o in obs[300:]:
+        state2, _ = update(state2, o, DriftSettings())
+    assert not any("level step" in n for n in prognose(state2, obs[300:], LIMIT).notes)

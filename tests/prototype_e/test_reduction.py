@@ -1,15 +1,13 @@
 """E with the design unit and every effect off reduces to the paper's reduced models
 (Yan et al. 2026, Eq. 11 opening, Eq. 7 closing) with the reference breaker's parameters.
 The reference solution is scipy's DOP853 at tight tolerances on the paper's equations,
-written here from the reference files, independently of E's code."""
+written here from the reference files (the shared-data lane's ``../shared/reference``),
+independently of E's code."""
 import csv
 import math
 from pathlib import Path
 
-try:
-    import tomllib
-except ImportError:  # pragma: no cover
-    tomllib = None
+import tomllib
 
 import numpy as np
 import pytest
@@ -18,19 +16,23 @@ from scipy.interpolate import CubicSpline
 
 from service.prototypes.e import model as M, sim, sensor as SN
 
-REF = Path("/work/shared/reference")
 FS = 128_000.0
 T0 = 0.02 + 3.3e-6  # motion start between two samples
 
 
-def _ref_params():
-    if tomllib is not None and (REF / "reference-252kV.toml").exists():
-        t = tomllib.loads((REF / "reference-252kV.toml").read_text())
-        c, o, a, b = t["closing_spring"], t["opening_spring"], t["arc_chamber"], t["buffer"]
-        raw = dict(c, **o, **a, **b)
-    else:
-        raw = dict(M.REFERENCE)
-    return raw
+@pytest.fixture(scope="module")
+def ref(samples_dir) -> Path:
+    """The shared reference folder beside the samples (the shared-data lane)."""
+    d = samples_dir.parent / "reference"
+    if not (d / "reference-252kV.toml").exists() or not (d / "cam-profile.csv").exists():
+        pytest.skip(f"the shared reference breaker is not at {d}")
+    return d
+
+
+def _ref_params(ref: Path) -> dict:
+    t = tomllib.loads((ref / "reference-252kV.toml").read_text())
+    c, o, a, b = t["closing_spring"], t["opening_spring"], t["arc_chamber"], t["buffer"]
+    return dict(c, **o, **a, **b)
 
 
 def _paper(raw):
@@ -44,8 +46,8 @@ def _paper(raw):
     )
 
 
-def test_design_constants_match_reference_file():
-    raw = _ref_params()
+def test_design_constants_match_reference_file(ref):
+    raw = _ref_params(ref)
     for k, v in M.REFERENCE.items():
         assert raw[k] == pytest.approx(v, rel=1e-12), k
     p = _paper(raw)
@@ -74,19 +76,18 @@ def _opening_reference(p, t_end):
     return lambda t: np.where(t < te, s1.sol(np.minimum(t, te))[0], s2.sol(np.maximum(t, te))[0])
 
 
-def _cam_ref():
-    path = REF / "cam-profile.csv" if (REF / "cam-profile.csv").exists() else M.HERE / "cam-profile.csv"
-    with open(path) as fh:
+def _cam_ref(ref: Path):
+    with open(ref / "cam-profile.csv") as fh:
         rows = list(csv.reader(fh))[1:]
     x = np.array([float(r[0]) for r in rows]); y = np.array([float(r[1]) for r in rows])
     return CubicSpline(x, y, bc_type="clamped"), x[-1]
 
 
-def _closing_reference(p, th_start, t_end):
-    h, xend = _cam_ref()
+def _closing_reference(ref, p, th_start, t_end):
+    h, xend = _cam_ref(ref)
     h1, h2 = h.derivative(1), h.derivative(2)
     AC, BC, CC, DC = p["AC"], p["BC"], p["CC"], p["DC"]
-    raw = _ref_params()
+    raw = _ref_params(ref)
     xC0, rC, d = raw["xC0"], raw["rC"], raw["d"]
 
     def f(t, y):
@@ -106,8 +107,8 @@ def _closing_reference(p, th_start, t_end):
     return s, h
 
 
-def test_opening_reduces_to_eq11():
-    p = _paper(_ref_params())
+def test_opening_reduces_to_eq11(ref):
+    p = _paper(_ref_params(ref))
     u = M.design_unit()
     r = sim.simulate("open", u, 20.0, {}, T0)
     tau = r["tau"]
@@ -124,15 +125,15 @@ def test_opening_reduces_to_eq11():
     assert np.max(np.abs(SN.reading(tau, u, 0.0) - tau)) < 1e-12
 
 
-def test_closing_reduces_to_eq7():
-    p = _paper(_ref_params())
+def test_closing_reduces_to_eq7(ref):
+    p = _paper(_ref_params(ref))
     u = M.design_unit()
     r = sim.simulate("close", u, 20.0, {}, T0)
     tau = r["tau"]
     t = np.arange(tau.size) / FS
     iend = int(np.nonzero(tau <= 1e-9)[0][0])
     assert 0.030 < t[iend] - T0 < 0.040  # closing of about 36 ms
-    s, h = _closing_reference(p, u.theta1_start, t[iend] + 5e-3)
+    s, h = _closing_reference(ref, p, u.theta1_start, t[iend] + 5e-3)
     sel = (t >= T0) & (t <= t[iend])
     th_ref = s.sol(t[sel])[0]
     tau_ref = 1.0 - h(np.minimum(th_ref, 3.141592653589793))

@@ -22,6 +22,10 @@ def database(tmp_path, monkeypatch):
     engine.dispose()
     monkeypatch.setenv("DATABASE_URL", url)
     monkeypatch.setenv("HVCB_DATA_DIR", str(tmp_path))
+    # No service to ask (a port nothing listens on): the report is drawn here, from this database.
+    from tests.live_server import free_port
+
+    monkeypatch.setenv("HVCB_URL", f"http://127.0.0.1:{free_port()}")
     return url
 
 

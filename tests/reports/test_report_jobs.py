@@ -106,3 +106,26 @@ def test_too_many_waiting_reports_are_refused_in_words_not_queued(svc, monkeypat
         assert r.status_code == 503 and "wait their turn" in r.json()["detail"] and r.headers["Retry-After"]
     finally:
         gate.set()
+
+
+def test_hvcb_report_asks_the_running_service_and_writes_its_pdf(svc, tmp_path, capsys):
+    """``hvcb report`` with a service answering: the PDF is the one its workers drew (the page's
+    button), polled through 202 when it is not ready at once; a refused key is said in words."""
+    from service.cli import main
+    from tests.live_server import LiveServer
+
+    app, client, h, _ = svc
+    out = tmp_path / "from-service.pdf"
+    with LiveServer(app, name="hvcb-report-cli") as server:
+        assert main(["report", "Q1", "-o", str(out), "--url", server.url, "--key", h["X-API-Key"]]) == 0
+        said = capsys.readouterr().out
+        assert f"drawn by the service at {server.url}" in said
+        assert out.read_bytes()[:5] == b"%PDF-"
+        assert main(["report", "Q1", "-o", str(out), "--url", server.url, "--key", "not-a-key"]) == 2
+        err = capsys.readouterr().err
+        assert f"the service at {server.url} refused the report (401)" in err and "--key" in err
+        assert main(["report", "Q9", "-o", str(out), "--url", server.url, "--key", h["X-API-Key"]]) == 2
+        assert "refused the report (404)" in capsys.readouterr().err
+    # Gone: with --url named, no fallback to a database the user did not ask for.
+    assert main(["report", "Q1", "-o", str(out), "--url", server.url, "--key", h["X-API-Key"]]) == 2
+    assert f"no service answers at {server.url}" in capsys.readouterr().err

@@ -41,7 +41,8 @@ def _statuses(Session) -> list[str]:
         return [f.status for f in s.scalars(select(FitRow).order_by(FitRow.operation_id))]
 
 
-def test_ctrl_c_stops_at_once_and_the_cut_fits_land_once_at_the_next_start(tmp_path, db_url, breaker):
+def test_ctrl_c_stops_without_finishing_the_running_fit_and_the_cut_fits_land_once_at_the_next_start(
+        tmp_path, db_url, breaker):
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(REPO), str(HERE)]))
     child = subprocess.Popen([sys.executable, str(HERE / "sigint_child.py"), str(tmp_path), db_url, str(N),
                               str(_free_port())], cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
@@ -55,6 +56,7 @@ def test_ctrl_c_stops_at_once_and_the_cut_fits_land_once_at_the_next_start(tmp_p
             while "running" not in _statuses(Session):
                 assert time.monotonic() < deadline, _statuses(Session)
                 time.sleep(0.02)
+            cut = _statuses(Session).index("running")  # the fit Ctrl-C must not wait for
             os.killpg(child.pid, signal.SIGINT)  # Ctrl-C reaches the whole foreground group
             t0 = time.monotonic()
             out, err = child.communicate(timeout=120)
@@ -67,9 +69,12 @@ def test_ctrl_c_stops_at_once_and_the_cut_fits_land_once_at_the_next_start(tmp_p
         assert child.returncode in (0, 130), err  # 130: stopped by Ctrl-C, as service/cli.py answers
         assert "Traceback" not in err and "Error" not in err, err
         assert "stopped" in out
-        # it did not wait for the queued fits: some are left for the next start
-        left = [s for s in _statuses(Session) if s not in ("done", "failed")]
-        assert left, _statuses(Session)
+        # "At once": it did not finish the fit running at Ctrl-C (each takes 1.5 s) nor the queued
+        # ones; they are left for the next start (a count, not a clock, so a loaded machine cannot
+        # make it pass or fail).
+        after = _statuses(Session)
+        assert after[cut] not in ("done", "failed"), after
+        assert sum(s not in ("done", "failed") for s in after) >= N - cut, after
 
         settings = make_settings(tmp_path, db_url, executor="local", fit_function="fit_doubles:slow_fit")
         monitor = Monitor(settings, Session, make_executor(settings))

@@ -62,7 +62,8 @@ def vibration(t, events, rng, *, noise_g=0.6, full_scale_g=1000.0):
 
 def simulate_capture(operation: str, effect: str | None = None, strength: float = 0.0, *,
                      rng: np.random.Generator, spread: float = 0.06, noise_rad: float = 1.5e-3,
-                     sample_rate_hz: float = 128000, mechanism: Mechanism | None = None):
+                     sample_rate_hz: float = 128000, mechanism: Mechanism | None = None,
+                     trip: dict | None = None):
     """One capture of ``operation`` with ``effect`` at ``strength`` (None: a control).
 
     Parameters
@@ -81,6 +82,12 @@ def simulate_capture(operation: str, effect: str | None = None, strength: float 
     sample_rate_hz : float
     mechanism : Mechanism, optional
         Nominal constants; the reference 252 kV breaker when omitted.
+    trip : dict, optional
+        An opening's trip strike before this capture's own latch-release shock, from the blind
+        generator ``service.prototypes.trip_strike_blind.add_trip`` (its physics untouched):
+        ``latch_time_s`` [s, strike to motion] and ``strike_g`` [g] (optional ``rub_rms_g``,
+        ``seed``). The release stays B's own shock (the blind release is given 0 g). The truth
+        then carries ``latch_time_s`` and ``t_strike_s``. Omitted: the capture is as before.
 
     Returns
     -------
@@ -128,6 +135,13 @@ def simulate_capture(operation: str, effect: str | None = None, strength: float 
             bursts.append((PRE_S + ev["touch"], shock * rng.uniform(0.2, 0.35), rng.uniform(2500, 3200), 0.5e-3))
         bursts.append((PRE_S + t_stroke, shock * rng.uniform(0.5, 0.7), rng.uniform(1600, 2100), 0.8e-3))
     vib = vibration(t_abs, bursts, rng)
+    trip_truth = None
+    if trip is not None and operation == "open":
+        from service.prototypes.trip_strike_blind import add_trip
+
+        vib, trip_truth = add_trip(t_abs, vib, t_motion=PRE_S, latch_time=float(trip["latch_time_s"]),
+                                   strike_peak_g=float(trip["strike_g"]), release_peak_g=0.0, release_lead=lead,
+                                   rub_rms_g=trip.get("rub_rms_g"), rng=np.random.default_rng(trip.get("seed")))
 
     cap = Capture(travel=travel, sample_rate=fs, vibration=vib, source=f"prototype-b-{operation}",
                   travel_limits=(0.0, math.pi), vibration_limits=(-1000.0, 1000.0))
@@ -139,6 +153,8 @@ def simulate_capture(operation: str, effect: str | None = None, strength: float 
         "events_s": {k: PRE_S + v for k, v in ev.items()},
         "noise_rad": float(noise_rad), "spread": float(spread),
     }
+    if trip_truth is not None:
+        truth["latch_time_s"], truth["t_strike_s"] = trip_truth.latch_time, trip_truth.t_strike
     return cap, truth
 
 
