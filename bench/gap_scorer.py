@@ -76,8 +76,8 @@ def method_own(rows) -> dict:
     """The method's own answers before the scorer (its softmax and its threshold)."""
     ans = []
     for r in rows:
-        if r.get("error") or r.get("failed") or r.get("label") is None:
-            continue
+        if r.get("error") or r.get("failed") or r.get("label") is None or not r.get("status"):
+            continue           # rows diagnosed to their features only carry no answer of the method's
         lab = train.hyp_label(r["label"])
         top = r.get("answer")
         named = None
@@ -124,8 +124,10 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--corpus", type=Path, default=ROOT / "var/gap48")
     ap.add_argument("--ship", action="store_true")
+    ap.add_argument("--l2", type=float, default=train.L2, help="the scorer's L2 (default: the one fixed beforehand)")
     ap.add_argument("--out", type=Path, default=ROOT / "bench/results/gap_scorer.json")
     args = ap.parse_args(argv)
+    train.L2 = args.l2
     up0 = uptime()
     rows = [r for v in corpus.VARIANTS for r in corpus.rows(args.corpus, v)]
     items, left = train.dataset(rows)
@@ -155,7 +157,9 @@ def main(argv=None):
                                "captures_per_group": sorted({it["row"]["n"] for it in items}),
                                "labels": dict(labels), "date": dt.date.today().isoformat(), "commit": commit,
                                "method": "conditional logit (McFadden 1974), L2 %g on standardised features" % train.L2},
-                "set": {"method": "APS (Romano, Sesia & Candes 2020), non-randomised", "alpha": train.ALPHA_SET,
+                "heldout": {k: out["lopo"]["all"][k] for k in ("set_holds_truth_detectable", "wrong_names",
+                                                                 "mean_set_size_detectable")},
+                "set": {"method": "APS (Romano, Sesia & Candes 2020), randomisation fixed at U = 0", "alpha": train.ALPHA_SET,
                         "qhat": q, "calibrated_on": "leave-one-prototype-out probabilities of every labelled row"},
                 "name": {"method": "Learn then Test (Angelopoulos et al. 2021), Hoeffding-Bentkus, fixed sequence",
                          "alpha": train.ALPHA_NAME, "delta": train.DELTA, "lambda": lam, "tested": tested[:12]}}

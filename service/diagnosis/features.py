@@ -31,10 +31,38 @@ import numpy as np
 from .whiteness import LAGS, ljung_box
 
 
+def loo_lpd(units, names) -> np.ndarray:
+    """Per unit the LOO log predictive density of hypothesis ``names`` (a tuple of column
+    groups), minus that of ``none`` (closed form, see the module docstring)."""
+    Xs = [np.column_stack([cols[n] for n in names]) if names else np.zeros((r.size, 0)) for r, cols in units]
+    k = Xs[0].shape[1]
+    if k == 0:
+        return np.zeros(len(units))
+    A = sum(X.T @ X for X in Xs)
+    b = sum(X.T @ r for X, (r, _) in zip(Xs, units))
+    n = sum(r.size for r, _ in units)
+    M = A * (1.0 + 1.0 / n) + 1e-12 * np.trace(A) / k * np.eye(k)   # Zellner g = n
+    _, ldM = np.linalg.slogdet(M)
+    out = np.empty(len(units))
+    for j, (X, (r, _)) in enumerate(zip(Xs, units)):
+        XtX, Xtr = X.T @ X, X.T @ r
+        Mj = M - XtX
+        m = np.linalg.solve(Mj, b - Xtr)
+        e = r - X @ m
+        Xte = X.T @ e
+        quad = float(e @ e - Xte @ np.linalg.solve(M, Xte))
+        sign, ldMj = np.linalg.slogdet(Mj)
+        if sign <= 0:
+            out[j] = -np.inf
+            continue
+        out[j] = -0.5 * (quad - float(r @ r)) - 0.5 * (ldM - ldMj)
+    return out
+
+
 def loo_detail(units, names, dof):
     """Per unit: (held-out χ² before, after the others' shared fit, its noise's degrees of
     freedom ``dof``) of hypothesis ``names`` (column groups), by the same Zellner-prior posterior
-    mean as ``predictive.loo_lpd``."""
+    mean as ``loo_lpd``."""
     Xs = [np.column_stack([cols[n] for n in names]) if names else np.zeros((r.size, 0)) for r, cols in units]
     before = np.array([float(r @ r) for r, _ in units])
     rows = np.asarray(dof, float)
@@ -86,8 +114,6 @@ def collect(caps, units, lpd: dict, dims: dict, hyps: dict, singles) -> dict:
     """Every hypothesis's features and the group's (module docstring). ``hyps``: name → column
     groups of the hypotheses the evidence stage scored (``lpd`` and ``dims`` by name); every pair
     of ``singles`` it did not score is scored here on the reduced fit's profile."""
-    from .predictive import loo_lpd
-
     lo = min(float(c.t_rel[0]) for c in caps)
     hi = max(float(c.t_rel[-1]) for c in caps)
     table = dict(hyps)

@@ -50,6 +50,7 @@ import numpy as np
 from ..mechanics.effects import REFERENCE_STRENGTHS as REALISTIC
 from .hypotheses import family_starts, signature
 from .linearised import exact_fit, member_from_pair
+from .features import collect, loo_lpd  # noqa: F401 (loo_lpd: the scoring core, re-exported)
 from .parallel import pmap
 from .noise import AR_ORDER, NOISE_KNOT_S, _orth, _prewhiten, spline_basis, yule_walker  # noqa: F401 (re-exported)
 from .windows import Windows
@@ -333,34 +334,6 @@ def _units(caps):
     return units, "stretches of one capture"
 
 
-def loo_lpd(units, names) -> np.ndarray:
-    """Per unit the LOO log predictive density of hypothesis ``names`` (a tuple of column
-    groups), minus that of ``none`` (closed form, see the module docstring)."""
-    Xs = [np.column_stack([cols[n] for n in names]) if names else np.zeros((r.size, 0)) for r, cols in units]
-    k = Xs[0].shape[1]
-    if k == 0:
-        return np.zeros(len(units))
-    A = sum(X.T @ X for X in Xs)
-    b = sum(X.T @ r for X, (r, _) in zip(Xs, units))
-    n = sum(r.size for r, _ in units)
-    M = A * (1.0 + 1.0 / n) + 1e-12 * np.trace(A) / k * np.eye(k)   # Zellner g = n
-    _, ldM = np.linalg.slogdet(M)
-    out = np.empty(len(units))
-    for j, (X, (r, _)) in enumerate(zip(Xs, units)):
-        XtX, Xtr = X.T @ X, X.T @ r
-        Mj = M - XtX
-        m = np.linalg.solve(Mj, b - Xtr)
-        e = r - X @ m
-        Xte = X.T @ e
-        quad = float(e @ e - Xte @ np.linalg.solve(M, Xte))
-        sign, ldMj = np.linalg.slogdet(Mj)
-        if sign <= 0:
-            out[j] = -np.inf
-            continue
-        out[j] = -0.5 * (quad - float(r @ r)) - 0.5 * (ldM - ldMj)
-    return out
-
-
 def occam(k: int, rows: float) -> float:
     """The Occam factor [nats] of k shared coefficients: ½ k ln(rows of one unit), Schwarz's,
     counted in one unit's blocks: a shape shared by the captures must pay for itself in the
@@ -452,8 +425,6 @@ def score(windows: Windows, catalogue) -> Scores:
     dims["outside_catalogue"] = best_k
     # the probabilities are the learnt scorer's (``scorer``), from every hypothesis's features:
     # no prior, Occam term or softmax of these sums here (issue 48 item 5)
-    from .features import collect
-
     feats = collect(caps, units, lpd, dims, hyps, singles)
     return Scores(list(hyps), dims, lpd, {k: float(np.sum(v)) for k, v in lpd.items()}, {}, {}, kind,
                   len(units), [c.ar for c in caps], {}, refined, exact, feats)

@@ -58,10 +58,14 @@ def test_the_result_says_how_its_probabilities_were_calibrated(analyser):
 
     b, caps = analyser
     r = diagnose(caps, b, "open", next_measurements=False)
+    from service.diagnosis.scorer import shipped
+
     note = r["calibration_note"]
-    assert "docs/gap-diagnosis.md" in note
-    assert ("not calibrated" in note) == (r["calibration"] in (None, "", "identity"))
-    assert "_" not in note.replace("docs/gap-diagnosis.md", "")         # words, no identifiers
+    pv = shipped().meta["provenance"]
+    assert "docs/gap-study.md" in note and f"on {pv['rows']} simulated groups" in note
+    assert "not on real breakers" in note                               # calibrated on simulations only
+    assert ("no single answer is named" in note) == (shipped().lam is None)
+    assert "_" not in note.replace("docs/gap-study.md", "")             # words, no identifiers
     assert note in format_report(r)
 
 
@@ -73,13 +77,22 @@ def test_a_failure_inside_the_method_names_the_records_and_the_stage(analyser, m
     b, caps = analyser
     pred = importlib.import_module("service.diagnosis.predictive")
 
-    def broken(*a, **k):
-        raise ValueError("array must not contain infs or NaNs")
+    def singular(*a, **k):
+        raise np.linalg.LinAlgError("Singular matrix")
 
-    monkeypatch.setattr(pred, "loo_lpd", broken)
+    monkeypatch.setattr(pred, "loo_lpd", singular)
     with pytest.raises(DiagnosisError) as ei:
         diagnose(caps, b, "open", next_measurements=False)
     msg = str(ei.value)
     assert all(c.source in msg for c in caps)
     assert "samples and reduced fits are numbers" in msg and "evidence" in msg
-    assert "infs or NaNs" not in msg and "Error" not in msg
+    assert "no unique solution" in msg and "Singular" not in msg and "Error" not in msg
+
+    # any other error is a fault of the method: it is not dressed up as a refusal (issue 48)
+    def bug(*a, **k):
+        raise ValueError("array must not contain infs or NaNs")
+
+    monkeypatch.setattr(pred, "loo_lpd", bug)
+    with pytest.raises(ValueError, match="infs or NaNs") as bug_info:
+        diagnose(caps, b, "open", next_measurements=False)
+    assert not isinstance(bug_info.value, DiagnosisError)

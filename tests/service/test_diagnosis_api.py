@@ -33,5 +33,7 @@ def test_diagnosis_is_queued_then_served(env, breaker):
     assert out["status"] == "done", out
     result = out["result"]
     assert {"gap", "candidates", "verdict"} <= set(result)
-    assert result["verdict"] == "contact_wipe"
+    # the answer is the 90 % set (issue 48): the wipe is in it; a name only past Learn then Test
+    assert any("contact_wipe" in k.split("+") for k in result["set"])
+    assert result["verdict"] in ("contact_wipe", "ambiguous")
     assert env.client.get(f"/api/v1/operations/{op + 1000}/diagnosis", headers=env.h("reader")).status_code == 404

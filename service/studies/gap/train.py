@@ -70,8 +70,9 @@ def dataset(rows):
     return items, left
 
 
-def fit(items, l2: float = L2, meta=None) -> Scorer:
-    """The conditional logit fitted on ``items`` (module docstring)."""
+def fit(items, l2: float | None = None, meta=None) -> Scorer:
+    """The conditional logit fitted on ``items`` (module docstring); ``l2`` default ``L2``."""
+    l2 = L2 if l2 is None else l2
     Xall = np.vstack([it["X"] for it in items])
     mean = Xall.mean(axis=0)
     scale = Xall.std(axis=0)
