@@ -9,13 +9,15 @@ from typing import Annotated, Literal
 
 from fastapi import APIRouter, HTTPException
 from fastapi import Path as PathParam
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, ConfigDict, Field
 
 from service.alarms.maintenance import KINDS, MaintenanceError
-from service.storage.maintenance import event_dict, list_events, record_event
+from service.jobs.maintenance import record_event
+from service.storage.maintenance import event_dict, list_events
 
 from . import schemas as s
 from .deps import OperatorDep, ReaderDep, SessionDep, SettingsDep
+from .refs import IsoOnly
 from .routes_alarms import _breaker_ref
 
 router = APIRouter(prefix="/api/v1", tags=["maintenance log"])
@@ -40,8 +42,12 @@ class MaintenanceEvent(BaseModel):
 
 
 class MaintenanceRequest(BaseModel):
+    # unknown fields are refused, and the schema says so (additionalProperties: false)
+    model_config = ConfigDict(extra="forbid")
+
     kind: Kind = Field(description="what was done")
-    done_at: datetime | None = Field(None, description="when it was done, with a time zone (default: now)")
+    done_at: Annotated[datetime | None, IsoOnly] = Field(
+        None, description="when it was done: ISO 8601 with a time zone (default: now)")
     done_by: str = Field(min_length=1, max_length=200, description="who did it")
     note: str = Field("", max_length=500)
 

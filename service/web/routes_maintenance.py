@@ -10,7 +10,8 @@ from fastapi import APIRouter, Form, HTTPException, Request
 
 from service.alarms.maintenance import KINDS, MaintenanceError
 from service.storage import crud
-from service.storage.maintenance import list_events, record_event
+from service.jobs.maintenance import record_event
+from service.storage.maintenance import list_events
 
 from .handlers import Id, OperatorPost, back, db_session, not_found
 
