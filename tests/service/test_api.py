@@ -37,6 +37,8 @@ OPERATOR_ROUTES |= {("POST", "/api/v1/alarms/{alarm_id}/shelve"), ("POST", "/api
                     ("PUT", "/api/v1/breakers/{breaker}/temperature")}
 # the unit's commissioning pair (service/api/routes_setting.py)
 OPERATOR_ROUTES |= {("POST", "/api/v1/breakers/{name}/commissioning")}
+# the engineer's maintenance log (service/api/routes_maintenance.py, issue 50)
+OPERATOR_ROUTES |= {("POST", "/api/v1/breakers/{name}/maintenance")}
 ADMIN_ROUTES = {("POST", "/api/v1/breakers/{breaker_id}/return-to-service"),
                 ("POST", "/api/v1/breakers"), ("POST", "/api/v1/breakers/{breaker_id}/baseline/reset"),
                 ("GET", "/api/v1/keys"), ("POST", "/api/v1/keys"), ("DELETE", "/api/v1/keys/{key_id}"),
