@@ -51,7 +51,7 @@ EFFECTS = {
     "puffer_gas": "adiabatic puffer pressure torque s*260*((1/(1-0.5*theta))^1.4 - 1) s^-2 "
                   "(about 9 % of the spring torque at full stroke at s=1)",
     "rod_elasticity": "compliant pull rod between the shaft (0.6 J2, spring, friction, buffer, "
-                      "transducer) and the contact (0.4 J2, puffer): rod mode 250/sqrt(s) Hz, "
+                      "transducer) and the contact (0.4 J2, puffer): rod mode 150/sqrt(s) Hz, "
                       "5 % damping; s < 0.02 is rigid",
     "stribeck_friction": "friction (TOf/J2)*(1 + 0.6*s*exp(-(v/2 rad/s)^2)): 60 % extra "
                          "static friction at s=1, falling to Coulomb with speed",
@@ -130,7 +130,7 @@ def simulate(p: dict, effects: dict | None = None, n: int | None = None):
 
 def _simulate_rod(p, e, n, s_rod):
     fm, fc = 0.6, 0.4
-    w = 2 * math.pi * 250.0 / math.sqrt(s_rod)
+    w = 2 * math.pi * 150.0 / math.sqrt(s_rod)
     K = w * w / (1.0 / fm + 1.0 / fc)          # rod stiffness / J2
     C = 2 * 0.05 * w / (1.0 / fm + 1.0 / fc)
     CO = p["CO"]
