@@ -21,7 +21,7 @@ import numpy as np
 FS = 128_000.0
 DT = 1.0 / FS
 PRE_S = 0.020            # pre-trigger idle
-DUR_S = 0.070            # capture length
+DUR_S = 0.100            # capture length (healthy peak ~57 ms after motion start)
 LATCH_LEAD_S = 0.0004    # latch shock before motion
 THETA_STOP = 1.10        # end stop [rad]
 K_STOP = 4.0e6           # end-stop stiffness [s^-2]
