@@ -73,6 +73,12 @@ def horizon_text(p) -> str:
     return operations(p.get("horizon_operations") or 0, p["parameter"])
 
 
+def _lead(now: str, lim: str) -> str:
+    """"Trend level …; limits …" as a sentence's start; the limits alone without a trend level."""
+    text = f"{now}; {lim}" if now else lim
+    return text[:1].upper() + text[1:]
+
+
 def summary(p: dict) -> str:
     """The card's sentence(s) for one prognosis (``as_json`` form)."""
     par = p["parameter"]
@@ -91,7 +97,9 @@ def summary(p: dict) -> str:
         if q and q.get("p05") is not None:
             when = f", {date(d['p05'])}" if d and d.get("p05") else ""
             early = f" At the earliest (5 %): in {operations(q['p05'], par)}{when}."
-        return (f"{who_cap}: no trend. {now[0].upper() + now[1:]}; {lim}. The slope's 90 % interval holds "
+        # without a trend level yet (every fit since a logged repair left out), the limits lead
+        lead = f"{now}; {lim}" if now else lim
+        return (f"{who_cap}: no trend. {lead[:1].upper() + lead[1:]}. The slope's 90 % interval holds "
                 f"zero: not expected to reach its limit within {horizon_text(p)} at this rate.{early}"
                 + change_text(p))
     if not q or q.get("median") is None:
@@ -100,7 +108,7 @@ def summary(p: dict) -> str:
             when = f", {date(d['p05'])}" if d and d.get("p05") else ""
             early = f" At the earliest (5 %): in {operations(q['p05'], par)}{when}."
         return (f"{who_cap}: not expected to reach its limit within {horizon_text(p)} at this rate. "
-                f"{now[0].upper() + now[1:]}; {lim}.{early}" + change_text(p))
+                f"{_lead(now, lim)}.{early}" + change_text(p))
     hi = operations(q["p95"], par) if q.get("p95") is not None else f"beyond {horizon_text(p)}"
     span = f"{int(round(q['p05'])):,}–{hi}" if q.get("p95") is not None else f"{operations(q['p05'], par)} to {hi}"
     when = ""
@@ -109,9 +117,9 @@ def summary(p: dict) -> str:
         when = f", around {date(d['median'])} (90 %: {date(d['p05'])} – {dhi})"
     if q["median"] < 0.5:  # the median crossing is the next opening: it is at its limit now
         return (f"{who_cap} is at its limit: service is due (90 % interval {span}). "
-                f"{now[0].upper() + now[1:]}; {lim}. {action(par)}")
+                f"{_lead(now, lim)}. {action(par)}")
     return (f"{who_cap} reaches its limit in about {operations(q['median'], par)}{when}; 90 % interval "
-            f"{span}. {now[0].upper() + now[1:]}; {lim}. Trend since the {p['basis']}, "
+            f"{span}. {_lead(now, lim)}. Trend since the {p['basis']}, "
             f"{p['basis_operations']} fits." + change_text(p))
 
 

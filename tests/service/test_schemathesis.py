@@ -30,7 +30,8 @@ pytest.importorskip("schemathesis")
 EXAMPLES_PER_OPERATION = 30
 # Some operations check content that JSON Schema cannot describe: a breaker file must be TOML
 # that builds a breaker, an upload must be a readable capture, a breaker diagnosis needs
-# stored operations, and a report's or an export's window needs `from` before `to`. A schema-valid request may be refused there with 422 in words; every other
+# stored operations, a report's or an export's window needs `from` before `to`, and maintenance
+# cannot be logged as done in the future or before 1970. A schema-valid request may be refused there with 422 in words; every other
 # operation must accept what its schema allows.
 # 410 is a state like 404: the operation exists, its raw capture was pruned by retention (here:
 # the history's fits have no capture file), so a schema-valid curve request may answer it.
@@ -40,7 +41,7 @@ expected-statuses = ["2xx", "3xx", "401", "403", "404", "409", "410", "429"]
 
 [[operations]]
 include-operation-id = ["create_breaker", "upload_capture", "request_breaker_diagnosis", "breaker_report", "request_report",
-                        "operations_csv", "alarms_csv"]
+                        "operations_csv", "alarms_csv", "post_maintenance"]
 checks.positive_data_acceptance.expected-statuses = ["2xx", "401", "403", "404", "409", "410", "422", "429"]
 """
 
