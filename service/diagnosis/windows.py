@@ -104,7 +104,13 @@ def prepare(captures, breaker: Breaker, operation: str, *, fitter=None, seed: in
     if not captures:
         raise DiagnosisError("no capture given")
     if fitter is None:
-        from ..estimation import fit_capture as fitter
+        from functools import partial
+
+        from ..estimation import fit_capture
+        from ..estimation.fit import FitSettings
+
+        # the diagnosis's sensor model carries the zero itself: the fit leaves it in
+        fitter = partial(fit_capture, settings=FitSettings(take_zero=False))
     fits = []
     for raw in captures:
         cap, valid = valid_samples(raw)

@@ -73,6 +73,9 @@ class FitSettings:
     random_start : bool
         Cold search starts at a random point of the ranges (the paper's protocol) instead of
         their centre.
+    take_zero : bool
+        Take the transducer's zero (the mean before the latch shock) off before the fit. The gap
+        diagnosis fits without it: its own model of the sensor carries the zero.
     """
 
     block_open: int = 32
@@ -88,6 +91,7 @@ class FitSettings:
     search_floor_blocks: float = 20.0
     fallback_factor: float = 1.5
     random_start: bool = False
+    take_zero: bool = True
 
 
 def fit_capture(capture: Capture, breaker: Breaker, operation: str, *, dc: float | None = None,
@@ -133,7 +137,7 @@ def fit_capture(capture: Capture, breaker: Breaker, operation: str, *, dc: float
     from .record import operation_capture
 
     capture, offset_s, picked = operation_capture(capture, breaker, operation, index)
-    window = prepare_window(capture, breaker, operation)
+    window = prepare_window(capture, breaker, operation, take_zero=settings.take_zero)
     if operation == "close":
         if dc is None:
             dc, dc_source = breaker.design_parameters()["DC"], "breaker file"

@@ -116,7 +116,7 @@ def block_samples(block_at_reference: int, sample_rate: float) -> int:
     return max(1, int(round(block_at_reference * sample_rate / REFERENCE_RATE_HZ)))
 
 
-def prepare_window(capture: Capture, breaker: Breaker, operation: str) -> FitWindow:
+def prepare_window(capture: Capture, breaker: Breaker, operation: str, *, take_zero: bool = True) -> FitWindow:
     """Find the valid interval of one operation in a capture.
 
     The start is the latch-release shock in the vibration channel (the first sample when there
@@ -170,7 +170,7 @@ def prepare_window(capture: Capture, breaker: Breaker, operation: str) -> FitWin
     lead = int((0.002 if operation == 'open' else 0.012) * fs)
     idle = y[:i_shock] if shock_found and tau_range is None else y[: max(i_move - lead, 0)]
     zero = 0.0
-    if shock_found and i_shock >= MIN_IDLE:
+    if take_zero and shock_found and i_shock >= MIN_IDLE:
         # Before the latch shock (or the coil command) the breaker is at rest at the coordinate's
         # zero, so those samples' mean is the transducer's zero in this operation (its keying,
         # its drift since the last one). The model starts from rest at 0: the zero is taken off
