@@ -84,7 +84,7 @@ class NoService(Exception):
 
 
 def report_from_service(url: str, key: str | None, breaker: str, start: datetime | None, end: datetime | None,
-                        *, connect_timeout_s: float = 0.5, wait_s: float = 600.0) -> bytes:
+                        *, connect_timeout_s: float = 5.0, wait_s: float = 600.0) -> bytes:
     """The PDF as the running service draws it (the page's button: warm, in its workers).
 
     Raises ``NoService`` when nothing answers at ``url``, ``UserError`` in words when it answers
