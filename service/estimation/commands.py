@@ -35,6 +35,7 @@ def run_fit(args) -> int:
 
     from ..acquisition.capture_file import breaker_reading, read_capture
     from ..breaker_file import BreakerFileError, load_breaker
+    from .finite import finite_tree
     from .fit import fit_capture
     from .window import FitError
 
@@ -44,12 +45,25 @@ def run_fit(args) -> int:
         result = fit_capture(capture, breaker, args.operation, dc=args.dc, seed=args.seed, index=args.index)
     except (BreakerFileError, CaptureError, FitError) as exc:
         raise UserError(str(exc)) from None
+    except (ValueError, FloatingPointError) as exc:  # numpy's LinAlgError is a ValueError
+        if not _non_finite(exc):
+            raise
+        # a NaN or ∞ met inside a library (scipy's "array must not contain infs or NaNs"): in words
+        raise UserError(f"{args.capture}: the {args.operation} fit met a value it cannot compute (a NaN or an "
+                        "infinity) on its path; the record holds a missing, over-range or out-of-scale sample "
+                        "that the reader did not mask (run hvcb inspect on it to see its channels)") from None
     if args.json:
-        json.dump(result.to_dict(), sys.stdout, allow_nan=False, default=_finite)
-        sys.stdout.write("\n")
+        # whole or nothing: a value JSON cannot hold must not leave half an object on stdout
+        text = json.dumps(finite_tree(result.to_dict()), allow_nan=False, default=_finite)
+        sys.stdout.write(text + "\n")
         return 0
     print(format_fit(result))
     return 0
+
+
+def _non_finite(exc: BaseException) -> bool:
+    text = str(exc).lower()
+    return any(w in text for w in ("nan", "inf", "not finite", "non-finite"))
 
 
 def _finite(value):

@@ -8,6 +8,7 @@ import numpy as np
 
 from drivers.capture import Capture
 from ..mechanics.breaker import Breaker
+from .finite import finite_tree
 from ..mechanics.coordinates import travel_from_coordinate
 
 
@@ -150,7 +151,7 @@ class FitResult:
         if self.operation == "close":
             out["dc_used"] = float(self.dc_used)
             out["dc_source"] = self.dc_source
-        return out
+        return finite_tree(out)  # strict JSON: a NaN or ∞ is null with its reason (issue 57)
 
     def fitted_travel(self, capture: Capture, breaker: Breaker) -> np.ndarray:
         """The fitted model as travel [rad from closed] at every sample of ``capture``.

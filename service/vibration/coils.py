@@ -54,7 +54,8 @@ def coil_results(name: str, current, sample_rate: float, *, analyser_peak_a: flo
         return []
     fs = float(sample_rate) if isinstance(sample_rate, (int, float)) else float("nan")
     if not np.isfinite(fs) or fs <= 0:
-        top = float(np.nanmax(x)) if np.isfinite(x).any() else 0.0
+        fin = x[np.isfinite(x)]  # an over-range ∞ is no current reading (issue 57: it reached the JSON)
+        top = float(fin.max()) if fin.size else 0.0
         if top < MIN_CURRENT_A:
             return []
         why = "the record states no sample rate (a bare export): give it (hvcb inspect --rate) to time the coil"
