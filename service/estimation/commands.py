@@ -35,7 +35,6 @@ def run_fit(args) -> int:
 
     from ..acquisition.capture_file import breaker_reading, read_capture
     from ..breaker_file import BreakerFileError, load_breaker
-    from .finite import finite_tree
     from .fit import fit_capture
     from .window import FitError
 
@@ -54,7 +53,7 @@ def run_fit(args) -> int:
                         "that the reader did not mask (run hvcb inspect on it to see its channels)") from None
     if args.json:
         # whole or nothing: a value JSON cannot hold must not leave half an object on stdout
-        text = json.dumps(finite_tree(result.to_dict()), allow_nan=False, default=_finite)
+        text = json.dumps(result.to_dict(), allow_nan=False, default=_finite)  # to_dict is finite already
         sys.stdout.write(text + "\n")
         return 0
     print(format_fit(result))
