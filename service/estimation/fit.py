@@ -192,6 +192,10 @@ def fit_capture(capture: Capture, breaker: Breaker, operation: str, *, dc: float
             alpha0=result.structure.get("alpha0", {}).get("value", breaker.alpha0)))
     except VibrationError as exc:
         result.characteristics.update(unread_vibration(str(exc)))
+    except (ValueError, ArithmeticError):  # a library met a value it cannot use: the travel fit stands
+        result.characteristics.update(unread_vibration(
+            f"{capture.source or 'the capture'}: the vibration or coil channels hold values the read cannot use "
+            "(not finite, or out of any range a sensor gives): the latch time and coil currents are not read"))
     if capture.meta.get("travel_map"):
         from .structure import characteristics_in_record_unit
 
