@@ -219,6 +219,12 @@ def main(argv=None) -> int:
     out = {"temperature_only": a.temperature_only}
     if not a.temperature_only:
         ic_ops, ic_w, ic_a = rates("control")
+        by = {}
+        for p in PARAMETERS:
+            ops_p = sum(r[0] for r in results[("control", p)])
+            by[p] = {"false_warnings_per_10k_ops": round(sum(r[1] for r in results[("control", p)]) / ops_p * 1e4, 4),
+                     "false_alarms_per_10k_ops": round(sum(r[2] for r in results[("control", p)]) / ops_p * 1e4, 4)}
+        out["in_control_by_parameter"] = by
         out.update({"in_control_operations": int(ic_ops), "in_control_breakers": a.breakers,
                "false_warnings_per_10k_ops": round(ic_w, 4), "false_alarms_per_10k_ops": round(ic_a, 4)})
         for start in (30, 300):
