@@ -175,7 +175,7 @@ def _warm_parts(cap, breaker, op, prior, n) -> dict:
              "travel_characteristics": median_ms(lambda: travel_characteristics(
                  cap.t, cap.travel, op, stroke=breaker.stroke, t_start=w.t_start, alpha0=breaker.alpha0)),
              "vibration_read": median_ms(lambda: vibration_characteristics(
-                 cap, op, t_motion, w.t_end, model_travel=lambda: r.fitted_travel(cap, breaker),
+                 cap, op, t_motion, w.t_end, model_travel=lambda t: r.travel_at(t, breaker),
                  alpha0=breaker.alpha0))}
     parts["estimator"] = parts["fit_capture"] - parts["window"] - parts["travel_characteristics"] - parts["vibration_read"]
     return {k: round(v, 3) for k, v in parts.items()}
