@@ -372,10 +372,11 @@ def _settled(y, i_arrival: int, fs: float) -> bool:
     # variance (residual variance over n - 2, as polyfit scales it), without the n x 2 lstsq
     n = rest.size
     tt = (np.arange(n) - 0.5 * (n - 1)) / fs
-    sxx = float(tt @ tt)
+    # (elementwise sums, not BLAS dot products: a threaded BLAS stalls on a busy machine)
+    sxx = float(np.sum(tt * tt))
     d = rest - rest.mean()
-    slope = float(tt @ d) / sxx
-    ssr = float(d @ d) - slope * slope * sxx
+    slope = float(np.sum(tt * d)) / sxx
+    ssr = float(np.sum(d * d)) - slope * slope * sxx
     return bool(slope <= 3.0 * np.sqrt(max(ssr / (n - 2) / sxx, 0.0)))
 
 

@@ -148,18 +148,27 @@ def short_time_energy(x: np.ndarray, n: int) -> np.ndarray:
 
 def effective_dof(ref: np.ndarray, n: int) -> float:
     """Effective chi-square degrees of freedom of an n-sample energy of noise like ``ref``."""
+    return effective_dofs(ref, (n,))[0]
+
+
+def effective_dofs(ref: np.ndarray, ns) -> list[float]:
+    """``effective_dof(ref, n)`` for each n of ``ns``, from one autocorrelation of ``ref``."""
     r = ref - ref.mean()
-    var = float(np.dot(r, r)) / r.size
+    var = float(np.sum(r * r)) / r.size
     if var <= 0:
-        return float(n)
-    lags = np.arange(1, min(n, r.size // 4))
-    if lags.size:  # the autocorrelation at every lag at once (Wiener–Khinchin, zero-padded: not circular)
+        return [float(n) for n in ns]
+    top = min(max(ns), r.size // 4)
+    if top > 1:  # the autocorrelation at every lag at once (Wiener–Khinchin, zero-padded: not circular)
         spec = np.fft.rfft(r, 2 * r.size)
-        acf = np.fft.irfft(spec * np.conj(spec), 2 * r.size)[1:lags[-1] + 1]
-        rho = acf / (r.size * var)
+        rho_all = np.fft.irfft(spec * np.conj(spec), 2 * r.size)[1:top] / (r.size * var)
     else:
-        rho = np.zeros(0)
-    return float(n / (1.0 + 2.0 * np.sum((1.0 - lags / n) * rho**2)))
+        rho_all = np.zeros(0)
+    out = []
+    for n in ns:
+        lags = np.arange(1, min(n, r.size // 4))
+        rho = rho_all[:lags.size]
+        out.append(float(n / (1.0 + 2.0 * np.sum((1.0 - lags / n) * rho**2))))
+    return out
 
 
 def energy_threshold(sigma: float, k: float, n: int, windows: float,
@@ -289,8 +298,12 @@ def detect_events(vibration, sample_rate: float, t_motion_s: float, operation: s
     if lo_v == hi_v or np.all((head == lo_v) | (head == hi_v)):  # at most two values
         return _null("the vibration channel is flat before the operation (constant or two-level): "
                      "a disconnected or dead accelerometer", t_motion)
+    # causal: the band-passed prefix is the whole channel's, so only what is read is looked at
+    # (to the travel's end, the envelope's span, and the 3 ms an event's peak is read over)
+    upto = min(raw.size, max(i_stop, i_motion + int(round(read_span_s * fs))) + int(round(3e-3 * fs)))
     lo_rail, hi_rail = _rails(raw, limits)
-    at_rail = (raw <= lo_rail) | (raw >= hi_rail)
+    prefix = raw[:upto]
+    at_rail = (prefix <= lo_rail) | (prefix >= hi_rail)
     if np.any(at_rail[:search0]):
         return _null("the vibration channel is clipped at rest (at its rail before the operation): "
                      "check the accelerometer's range and offset", t_motion)
@@ -298,25 +311,22 @@ def detect_events(vibration, sample_rate: float, t_motion_s: float, operation: s
     if span_rail > CLIP_FRACTION:
         return _null(f"the vibration channel is clipped: {span_rail:.0%} of the {((i_motion - search0) / fs) * 1e3:.1f} ms "
                      "before the motion sit at the channel's rail, so the shocks' onsets are lost", t_motion)
-    sigma = float(np.median(np.abs(ref - np.median(ref)))) * 1.4826
+    sigma = float(np.median(np.abs(ref))) * 1.4826  # ref's median is 0: rest was taken off
     if sigma > 0 and np.max(np.abs(ref)) > OUTLIER_SIGMA * sigma:
         where = int(np.argmax(np.abs(ref) > OUTLIER_SIGMA * sigma))
         return _null(f"the vibration already rings {(i_motion - where) / fs * 1e3:.1f} ms before the motion, "
                      f"earlier than the {MAX_LATCH_S * 1e3:.0f} ms a latch can take: the pre-trigger holds no quiet "
                      "noise to judge the first shock against", t_motion, noise_g=sigma)
     noise_g = float(np.std(ref))
-    # causal: the band-passed prefix is the whole channel's, so only what is read is filtered
-    # (to the travel's end, the envelope's span, and the 3 ms an event's peak is read over)
-    upto = max(i_stop, i_motion + int(round(read_span_s * fs))) + int(round(3e-3 * fs))
-    x = band(x[:min(raw.size, upto)], fs)
+    x = band(x[:upto], fs)
     ref = x[n:search0]  # the filter's start-up left out
     sigma = float(np.std(ref))
     if sigma <= 0:
         return _null("the vibration channel is flat before the operation: a dead accelerometer", t_motion)
     noise_kw = {"noise_g": noise_g, "banded": x}
-    k = effective_dof(ref, n)
+    k, quarter = effective_dofs(ref, (n, ref.size // 4))
     span = i_motion - search0
-    ref_dof = effective_dof(ref, ref.size // 4) * 4
+    ref_dof = quarter * 4
     threshold = energy_threshold(sigma, k, n, span, rate, ref_dof=ref_dof)
     thr_g = float(np.sqrt(threshold / n))
     noise_kw["threshold_g"] = thr_g
