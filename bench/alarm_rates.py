@@ -7,6 +7,11 @@ Noise model (docs/alarms.md): per breaker a run-to-run sd drawn in 1-2 %; per fi
 half-width drawn in 0.8-1.2 % (the measured fit CIs) and a fit error consistent with it; 1 % of
 fits are gross outliers, off by 5-30 % either way. One operation a day at a random hour.
 
+The trip latch's time (``latch_time_s``, read from the vibration, watched rising by default) is
+the third watched parameter of every breaker: no interval (the read gives none), a read error of
+0.049 ms sd (the withheld latch series' worst median error, 0.033 ms, over 0.6745), the same
+run-to-run spread and outliers, and no temperature dependence (none is modelled for it yet).
+
 Cases: in control (no temperature effect, none given); drifts (ramps of 1 %/op, a slow leak of
 -0.1 %/op, 5 % steps) starting at operation 30 (young baseline) and 300 (frozen baseline);
 seasonal temperature (-25..+40 C over a year, daily swings, DO -0.4 %/K, BO -0.03 %/K) with and
@@ -19,6 +24,7 @@ import argparse
 import json
 import math
 import os
+import subprocess
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
@@ -31,8 +37,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from service.alarms import DriftSettings, DriftState, FitObservation, update  # noqa: E402
 
-NOMINAL = {"DO": 39.5, "BO": 4806.0}  # reference breaker [s^-1], [s^-2]
-TEMP_SLOPE = {"DO": -0.004, "BO": -0.0003}  # simulated temperature dependence [1/K]
+NOMINAL = {"DO": 39.5, "BO": 4806.0, "latch_time_s": 1.2e-3}  # reference breaker [s^-1], [s^-2], [s]
+TEMP_SLOPE = {"DO": -0.004, "BO": -0.0003, "latch_time_s": 0.0}  # simulated temperature dependence [1/K]
+PARAMETERS = tuple(NOMINAL)
+LATCH_READ_SD_S = 0.033e-3 / 0.6745  # bench/vibration_series.py: median |error| <= 0.033 ms [s]
+STICK_PER_OP = 0.02e-3 / 1.2e-3  # the sticking latch of bench/vibration_series.py: 0.02 ms per opening [-]
 T_REF = 20.0  # [C]
 Z95 = 1.959963984540054
 T0 = datetime(2024, 1, 1, tzinfo=timezone.utc)
@@ -69,12 +78,14 @@ def history(rng, parameter: str, n_ops: int, *, drift: str = "none", rate: float
     temp = temperature(day, hour, rng)
     if seasonal:
         factor = factor * (1.0 + TEMP_SLOPE[parameter] * (temp - T_REF))
+    latch = parameter == "latch_time_s"
     half = rng.uniform(0.008, 0.012, n_ops) * p
-    x = p * factor * (1.0 + sd_run * rng.standard_normal(n_ops)) + half / Z95 * rng.standard_normal(n_ops)
+    read_sd = np.full(n_ops, LATCH_READ_SD_S) if latch else half / Z95
+    x = p * factor * (1.0 + sd_run * rng.standard_normal(n_ops)) + read_sd * rng.standard_normal(n_ops)
     out = rng.random(n_ops) < OUTLIER_P
     x[out] *= 1.0 + rng.choice([-1.0, 1.0], out.sum()) * rng.uniform(0.05, 0.30, out.sum())
     return [FitObservation(operation_id=int(op), time=T0 + timedelta(days=float(d), hours=float(h)),
-                           value=float(v), ci95=(float(v - hw), float(v + hw)),
+                           value=float(v), ci95=None if latch else (float(v - hw), float(v + hw)),
                            temperature=float(t) if give_temperature else None)
             for op, d, h, v, hw, t in zip(i, i, hour, x, half, temp)]
 
@@ -136,6 +147,7 @@ def main(argv=None) -> int:
         a.drift_histories, a.frozen_drift_histories = 100, 50
     settings = DriftSettings() if a.common_mode_z is None else DriftSettings(common_mode_z=a.common_mode_z)
     sd = settings.to_dict()
+    uptime_before = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
     t_start = time.perf_counter()
 
     jobs = []
@@ -148,7 +160,7 @@ def main(argv=None) -> int:
             jobs.append((kind, parameter, ch, kw, sd))
 
     case = 0
-    for p in ("DO", "BO"):
+    for p in PARAMETERS:
         case += 1
         add("control", p, a.breakers, {"n_ops": a.ops}, case)
         case += 1
@@ -159,11 +171,12 @@ def main(argv=None) -> int:
             {"n_ops": a.ops, "seasonal": True, "give_temperature": False}, case)
     drifts = [("ramp1", "DO", "ramp", -0.01), ("ramp1", "BO", "ramp", -0.01), ("ramp1", "BO", "ramp", +0.01),
               ("leak", "DO", "ramp", -0.001),
-              ("step5", "DO", "step", -0.05), ("step5", "BO", "step", -0.05), ("step5", "BO", "step", +0.05)]
+              ("step5", "DO", "step", -0.05), ("step5", "BO", "step", -0.05), ("step5", "BO", "step", +0.05),
+              ("latch_stick", "latch_time_s", "ramp", STICK_PER_OP)]
     for start in (30, 300):
         for name, p, drift, rate in drifts:
             case += 1
-            length = {"ramp1": 40, "leak": 200, "step5": 30}[name]
+            length = {"ramp1": 40, "leak": 200, "step5": 30, "latch_stick": 40}[name]
             add(f"{name}@{start}", p, a.drift_histories if start == 30 else a.frozen_drift_histories,
                 {"n_ops": start + length, "drift": drift, "rate": rate, "start": start}, case)
 
@@ -181,11 +194,11 @@ def main(argv=None) -> int:
     elapsed = time.perf_counter() - t_start
 
     def rates(kind):
-        ops = {p: sum(r[0] for r in results[(kind, p)]) for p in ("DO", "BO")}
+        ops = {p: sum(r[0] for r in results[(kind, p)]) for p in PARAMETERS}
         breakers = len(results[(kind, "DO")])
-        per_breaker_ops = ops["DO"] / breakers  # DO and BO of a breaker see the same operations
-        w = sum(r[1] for p in ("DO", "BO") for r in results[(kind, p)])
-        al = sum(r[2] for p in ("DO", "BO") for r in results[(kind, p)])
+        per_breaker_ops = ops["DO"] / breakers  # every parameter of a breaker sees the same operations
+        w = sum(r[1] for p in PARAMETERS for r in results[(kind, p)])
+        al = sum(r[2] for p in PARAMETERS for r in results[(kind, p)])
         total_ops = per_breaker_ops * breakers
         return total_ops, w / total_ops * 1e4, al / total_ops * 1e4
 
@@ -206,6 +219,12 @@ def main(argv=None) -> int:
     out = {"temperature_only": a.temperature_only}
     if not a.temperature_only:
         ic_ops, ic_w, ic_a = rates("control")
+        by = {}
+        for p in PARAMETERS:
+            ops_p = sum(r[0] for r in results[("control", p)])
+            by[p] = {"false_warnings_per_10k_ops": round(sum(r[1] for r in results[("control", p)]) / ops_p * 1e4, 4),
+                     "false_alarms_per_10k_ops": round(sum(r[2] for r in results[("control", p)]) / ops_p * 1e4, 4)}
+        out["in_control_by_parameter"] = by
         out.update({"in_control_operations": int(ic_ops), "in_control_breakers": a.breakers,
                "false_warnings_per_10k_ops": round(ic_w, 4), "false_alarms_per_10k_ops": round(ic_a, 4)})
         for start in (30, 300):
@@ -225,6 +244,10 @@ def main(argv=None) -> int:
             out[f"step_5pct_delay_p95_ops{sfx}"] = float(np.percentile(ds, 95))
             out[f"step_5pct_within_3_ops_fraction{sfx}"] = round(float(np.mean(ds <= 3)), 4)
             out[f"step_5pct_not_after_onset{sfx}"] = int(ms)
+            dl_, ml_ = delays(f"latch_stick@{start}", ["latch_time_s"], start)
+            out[f"latch_stick_delay_median_ops{sfx}"] = float(np.median(dl_)) if dl_.size else None
+            out[f"latch_stick_delay_max_ops{sfx}"] = int(dl_.max()) if dl_.size else None
+            out[f"latch_stick_not_after_onset{sfx}"] = int(ml_)
             dw = delays(f"ramp1@{start}", ["DO", "BO"], start, level=3)[0]
             out[f"ramp_1pct_warning_delay_median_ops{sfx}"] = float(np.median(dw))
     ds, ms = delays("step5_seasonal@300", ["DO", "BO"], 300)
@@ -242,6 +265,10 @@ def main(argv=None) -> int:
                 "seasonal_false_alarms_per_10k_ops": round(se_a, 4),
                 "drift_histories_per_case": a.drift_histories,
                 "frozen_drift_histories_per_case": a.frozen_drift_histories,
+                "watched": dict(settings.watched), "sides": settings.sides,
+                "designed_false_warnings_per_10k_ops": settings.design_false_warnings_per_10k,
+                "designed_false_alarms_per_10k_ops": settings.design_false_alarms_per_10k,
+                "uptime_before": uptime_before, "uptime_after": subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip(),
                 "thresholds": {"k": settings.k, "h_warning": round(settings.h_warning, 4),
                                "h_alarm": round(settings.h_alarm, 4), "z_cap": settings.z_cap,
                                "baseline_n": settings.baseline_n, "baseline_max": settings.baseline_max,

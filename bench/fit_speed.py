@@ -24,7 +24,13 @@ import subprocess
 import time
 from pathlib import Path
 
-import numpy as np
+# One core means one BLAS thread too: OpenBLAS's second thread on a busy 2-core machine waits for
+# the other core and multiplies a fit's small matrix products' time (measured: the closing's
+# settled-rest check took 20-40 ms instead of 0.02). Set before numpy loads.
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import numpy as np  # noqa: E402
 from scipy.integrate import solve_ivp
 
 REPO = Path(__file__).resolve().parents[1]
@@ -175,7 +181,7 @@ def _warm_parts(cap, breaker, op, prior, n) -> dict:
              "travel_characteristics": median_ms(lambda: travel_characteristics(
                  cap.t, cap.travel, op, stroke=breaker.stroke, t_start=w.t_start, alpha0=breaker.alpha0)),
              "vibration_read": median_ms(lambda: vibration_characteristics(
-                 cap, op, t_motion, w.t_end, model_travel=lambda: r.fitted_travel(cap, breaker),
+                 cap, op, t_motion, w.t_end, model_travel=lambda t: r.travel_at(t, breaker),
                  alpha0=breaker.alpha0))}
     parts["estimator"] = parts["fit_capture"] - parts["window"] - parts["travel_characteristics"] - parts["vibration_read"]
     return {k: round(v, 3) for k, v in parts.items()}
@@ -186,6 +192,7 @@ def main():
     ap.add_argument("--fits", type=int, default=20)
     ap.add_argument("--naive-budget-s", type=float, default=300.0)
     ap.add_argument("--samples", default=str(REPO.parent / "shared" / "samples"))
+    ap.add_argument("--out", default=str(REPO / "bench" / "results" / "fit_speed.json"))
     args = ap.parse_args()
     try:
         os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})  # one core
@@ -243,8 +250,9 @@ def main():
     results["load_average_at_end"] = list(os.getloadavg())
     results["uptime_after"] = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
     results["cores"] = 1
+    results["blas_threads"] = int(os.environ["OPENBLAS_NUM_THREADS"])
     results["machine"] = os.uname().machine
-    out = REPO / "bench" / "results" / "fit_speed.json"
+    out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(results, indent=2) + "\n")
     print(f"wrote {out}")

@@ -13,7 +13,9 @@ Each opening's latch time is read by ``service.vibration`` from the start of mot
 or with ``--fit`` the travel fit's own onset, as the service does), checked against the breaker's
 fingerprint (its first 10 openings: a first shock where the release is means a missed strike), and
 fed to the self-starting CUSUM of ``service.alarms`` (``observations_from_fit``, ``replay``) with
-``latch_time_s`` watched rising. Writes bench/results/vibration_series.json (with ``uptime``).
+the shipped settings (config/default.toml's ``[alarms]``: ``latch_time_s`` watched rising beside
+DO and BO, its thresholds designed for the 4 sides together; ``--by-hand`` watches the latch alone,
+as issue 49's study did). Writes bench/results/vibration_series.json (with ``uptime``).
 Run: PYTHONPATH=. .venv/bin/python bench/vibration_series.py [--fit] [--seed N] [--only growing,quiet]
 """
 
@@ -60,7 +62,14 @@ def latch_truth(kind: str, i: int, rng) -> float:
     return lt
 
 
-def series(breaker, gen: str, kind: str, seed: int, use_fit: bool):
+def shipped_settings() -> DriftSettings:
+    """The drift settings ``hvcb serve`` runs with by default (config/default.toml)."""
+    from service.settings import load_settings
+
+    return load_settings(ROOT / "config/default.toml").drift_settings
+
+
+def series(breaker, gen: str, kind: str, seed: int, use_fit: bool, settings: DriftSettings):
     rng = np.random.default_rng([seed, len(gen), len(kind)])
     make = GENERATORS[gen]
     chars, truths = [], []
@@ -79,7 +88,6 @@ def series(breaker, gen: str, kind: str, seed: int, use_fit: bool):
     for ch in chars:
         missed = fp.shift(ch)["strike_not_seen"] if ch.get("latch_time_s") is not None else None
         checked.append({**ch, "latch_time_s": None, "latch_time_reason": missed} if missed else ch)
-    settings = DriftSettings(watched={"latch_time_s": "rising"})
     obs = []
     for i, ch in enumerate(checked):
         o = observations_from_fit({"parameters": {}, "characteristics": ch}, operation_id=i,
@@ -123,14 +131,20 @@ def main():
     ap.add_argument("--seed", type=int, default=2049)
     ap.add_argument("--only", default="healthy,growing,quiet", help="series to run, comma-separated")
     ap.add_argument("--out", default=None)
+    ap.add_argument("--by-hand", action="store_true", help="the latch watched alone (issue 49's study)")
     args = ap.parse_args()
-    out = Path(args.out or ROOT / f"bench/results/vibration_series{'_fit' if args.fit else ''}.json")
+    out = Path(args.out or ROOT / f"bench/results/vibration_series{'_fit' if args.fit else ''}"
+                                  f"{'_by_hand' if args.by_hand else ''}.json")
+    settings = DriftSettings(watched={"latch_time_s": "rising"}) if args.by_hand else shipped_settings()
     result_only = args.only
     breaker = load_breaker(ROOT / "config/breakers/reference-252kV.toml")
     t0 = time.perf_counter()
     result = {"uptime_before": subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip(),
               "motion_from": "travel fit onset" if args.fit else "simulated truth",
-              "seed": args.seed, "series": result_only, "rows": [series(breaker, g, k, args.seed, args.fit)
+              "settings": "the latch watched alone" if args.by_hand else "shipped (config/default.toml)",
+              "watched": dict(settings.watched),
+              "thresholds": {"k": settings.k, "h_warning": settings.h_warning, "h_alarm": settings.h_alarm},
+              "seed": args.seed, "series": result_only, "rows": [series(breaker, g, k, args.seed, args.fit, settings)
                                           for g in GENERATORS for k in args.only.split(",")]}
     result["all_pass"] = all(r["pass"] for r in result["rows"])
     result["wall_s"] = time.perf_counter() - t0

@@ -3,8 +3,8 @@ share these, so a value reads the same wherever it is shown.
 
 Numbers are plain notation (never ``2.363e+04``), to a stated number of significant figures,
 with a true minus sign (U+2212) and thousands separated by a thin comma from 10 000 on. A
-parameter is named in words with its code beside it ("buffer damping (DO)"), never the code
-alone. Pure: no I/O.
+parameter is named in words with its symbol beside it ("buffer damping (DO)"), never the symbol
+alone; a characteristic such as the trip latch time in words only (its code is the program's). Pure: no I/O.
 """
 
 from __future__ import annotations
@@ -91,10 +91,24 @@ def parameter_name(name: str) -> str:
     return NAMES.get(name, name)
 
 
+def is_symbol(name: str) -> bool:
+    """``name`` is one of the model's parameter symbols (the paper's AO, BO, ...), which people
+    read beside its words; a characteristic's code (``latch_time_s``) is a program's name, not theirs."""
+    return name.isalnum() and name.isupper()
+
+
 def parameter_label(name: str) -> str:
-    """The parameter in words with its code beside it: "buffer damping (DO)"."""
+    """The parameter in words with its symbol beside it: "buffer damping (DO)"; a characteristic
+    in words alone: "trip latch time"."""
     words = NAMES.get(name)
-    return f"{words} ({name})" if words else name
+    if not words:
+        return name
+    return f"{words} ({name})" if is_symbol(name) else words
+
+
+def parameter_short(name: str) -> str:
+    """The shortest name people read, for an axis: the symbol ("DO"), or a characteristic's words."""
+    return name if is_symbol(name) else NAMES.get(name, name)
 
 
 def plural(n: int, word: str, words: str | None = None) -> str:

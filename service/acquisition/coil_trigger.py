@@ -111,6 +111,13 @@ def _coil_rises(capture: Capture) -> list:
     out = []
     for ch in capture.aux_of("coil_current"):
         x = np.asarray(ch.data, dtype=float)
+        ok = np.isfinite(x)
+        if ok.sum() < 16:
+            continue  # no coil current to read (a NaN or over-range channel throughout)
+        # a NaN or infinite sample is no reading: the levels come from the finite ones, and the
+        # last reading before it stands in for it (so it neither starts nor ends a pulse)
+        held = np.maximum.accumulate(np.where(ok, np.arange(x.size), -1))
+        x = x[np.where(held >= 0, held, int(np.argmax(ok)))]
         lo, hi = np.percentile(x, 1), np.percentile(x, 99.5)
         # Sample-to-sample noise (robust to the steps themselves): a coil that is never
         # energised spans a few noise sd; one that is, hundreds. 20 sd keeps noise out.

@@ -178,8 +178,7 @@ def _coils(rec) -> list:
     for c in rec.channels:
         if c.kind == "coil_current" and c.wired:
             peak = stated.get(c.name)
-            out += coil_results(c.name, c.data, rec.sample_rate,
-                                analyser_peak_a=float(peak) if isinstance(peak, (int, float)) and peak > 0 else None)
+            out += coil_results(c.name, c.data, rec.sample_rate, analyser_peak_a=peak)  # checked there
     return out
 
 

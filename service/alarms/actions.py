@@ -93,12 +93,21 @@ def observations_from_fit(fit: Any, *, operation_id: int | str, time: datetime,
     return out
 
 
+def never_fed(state: DriftState) -> bool:
+    """No value of this parameter has reached the detector since its (re)start."""
+    return state.phase == "baseline" and not state.collected and state.last_operation_id is None
+
+
 def health_status(states: Iterable[DriftState], shelved: Iterable[str] = ()) -> str:
     """Overall drift status of a breaker: "alarm" | "warning" | "ok" | "unknown" (no baseline yet).
 
     The level of a parameter whose alarm an operator has ``shelved`` does not count while shelved.
     """
     states, shelved = list(states), set(shelved)
+    # a watched parameter that has never had a value (the latch time of a breaker whose captures
+    # carry no vibration) says nothing about the breaker: it neither alarms nor keeps it "unknown"
+    fed = [s for s in states if not never_fed(s)]
+    states = fed if fed else states
     levels = {s.level for s in states if s.parameter not in shelved}
     if "alarm" in levels:
         return "alarm"

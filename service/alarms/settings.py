@@ -20,8 +20,12 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 DIRECTIONS = ("falling", "rising", "both")
 
 # DO falling = the buffer oil is leaking (less damping). BO either way = opening spring
-# relaxation, a resistance change or a pre-compression change.
-DEFAULT_WATCHED: Mapping[str, str] = MappingProxyType({"DO": "falling", "BO": "both"})
+# relaxation, a resistance change or a pre-compression change. latch_time_s rising = the trip
+# latch sticks (dried grease, wear): read from the vibration (service.vibration), so a breaker
+# whose captures carry none simply gives it no values (it never alarms and never blocks the status).
+DEFAULT_WATCHED: Mapping[str, str] = MappingProxyType({"DO": "falling", "BO": "both", "latch_time_s": "rising"})
+OFF = "off"
+"""A per-breaker override's word for "not watched on this breaker" (``[alarms.breakers.NAME]``)."""
 
 # Temperature dependence physics allows, relative to the parameter's value [1/K] (docs/alarms.md):
 # DO is buffer damping, set by the oil's viscosity, which falls with temperature (mineral oils
@@ -54,6 +58,9 @@ class DriftSettings(BaseModel):
         screen_sigmas MAD-sigmas and screen_min_rel of the median is a gross outlier
     max_evidence_ops : operation ids kept as evidence of one excursion [ops]
     watched : parameter name -> "falling" | "rising" | "both"
+    breakers : breaker name -> {parameter name -> "falling" | "rising" | "both" | "off"}: the
+        watched set of one breaker differs (``for_breaker``); its thresholds are designed for
+        its own sides, so its total false-alarm rate is the designed one too
     temperature_slopes : parameter name -> (lowest, highest) relative slope physics allows [1/K]
     """
 
@@ -79,6 +86,15 @@ class DriftSettings(BaseModel):
         default_factory=lambda: dict(DEFAULT_WATCHED), min_length=1)
     temperature_slopes: dict[str, tuple[float, float]] = Field(
         default_factory=lambda: dict(DEFAULT_TEMPERATURE_SLOPES))
+    breakers: dict[str, dict[str, Literal["falling", "rising", "both", "off"]]] = Field(default_factory=dict)
+
+    @field_validator("breakers")
+    @classmethod
+    def _breakers(cls, v):
+        for name, over in v.items():
+            if not over:
+                raise ValueError(f"[alarms.breakers.{name}] is empty: name a parameter and a direction or \"off\"")
+        return v
 
     @field_validator("temperature_slopes")
     @classmethod
@@ -127,6 +143,22 @@ class DriftSettings(BaseModel):
         from service.alarms.design_cache import threshold
 
         return threshold(self.sides * 1e4 / self.design_false_alarms_per_10k, k=self.k, z_cap=self.z_cap)
+
+    def for_breaker(self, name: str | None) -> "DriftSettings":
+        """The settings of breaker ``name``: ``watched`` with its ``[alarms.breakers.NAME]``
+        overrides applied ("off" removes a parameter), thresholds designed for its own number of
+        sides. The same object when the breaker has no override. ValueError when the overrides
+        leave nothing watched."""
+        over = self.breakers.get(name) if name is not None else None
+        if not over:
+            return self
+        watched = {**self.watched, **over}
+        watched = {p: d for p, d in watched.items() if d != OFF}
+        if not watched:
+            raise ValueError(f"[alarms.breakers.{name}] turns every watched parameter off: put the breaker "
+                             "out of service instead (docs/alarms.md)")
+        # validated anew (not model_copy): the thresholds are cached on the instance
+        return type(self).model_validate({**self.model_dump(), "watched": watched, "breakers": {}})
 
     def direction(self, parameter: str) -> str:
         """The watched direction of ``parameter``; ValueError if it is not watched."""

@@ -188,10 +188,14 @@ def fit_capture(capture: Capture, breaker: Breaker, operation: str, *, dc: float
     try:  # the vibration's latch time and events (service.vibration); a bad channel never fails the fit
         result.characteristics.update(vibration_characteristics(
             capture, operation, window.t_start + result.onset_delay_s, window.t_end,
-            model_travel=partial(result.fitted_travel, capture, breaker),
+            model_travel=partial(result.travel_at, breaker=breaker),
             alpha0=result.structure.get("alpha0", {}).get("value", breaker.alpha0)))
     except VibrationError as exc:
         result.characteristics.update(unread_vibration(str(exc)))
+    except (ValueError, ArithmeticError):  # a library met a value it cannot use: the travel fit stands
+        result.characteristics.update(unread_vibration(
+            f"{capture.source or 'the capture'}: the vibration or coil channels hold values the read cannot use "
+            "(not finite, or out of any range a sensor gives): the latch time and coil currents are not read"))
     if capture.meta.get("travel_map"):
         from .structure import characteristics_in_record_unit
 

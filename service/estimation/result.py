@@ -159,8 +159,12 @@ class FitResult:
         Before the onset of motion the model is at rest; the curve is the model's, also beyond
         the valid interval.
         """
+        return self.travel_at(capture.t, breaker)
+
+    def travel_at(self, t, breaker: Breaker) -> np.ndarray:
+        """The fitted model's travel [rad from closed] at times ``t`` [s from the capture's first sample]."""
         return fitted_travel(self.operation, self.parameters, self.window_s[0], self.onset_delay_s,
-                             capture.t, breaker, dc_used=self.dc_used,
+                             t, breaker, dc_used=self.dc_used,
                              alpha0=self.structure.get("alpha0", {}).get("value"),
                              co=self.structure.get("CO", {}).get("value"), zero_rad=self.zero_rad)
 

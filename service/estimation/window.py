@@ -368,9 +368,16 @@ def _settled(y, i_arrival: int, fs: float) -> bool:
     rest = y[i_arrival:]
     if rest.size < END_FIT_S * fs or rest.size < 8:
         return False
-    tt = np.arange(rest.size) / fs
-    coef, cov = np.polyfit(tt, rest, 1, cov=True)
-    return bool(coef[0] <= 3.0 * np.sqrt(max(cov[0, 0], 0.0)))
+    # the least-squares line in closed form: np.polyfit(tt, rest, 1, cov=True)'s slope and its
+    # variance (residual variance over n - 2, as polyfit scales it), without the n x 2 lstsq
+    n = rest.size
+    tt = (np.arange(n) - 0.5 * (n - 1)) / fs
+    # (elementwise sums, not BLAS dot products: a threaded BLAS stalls on a busy machine)
+    sxx = float(np.sum(tt * tt))
+    d = rest - rest.mean()
+    slope = float(np.sum(tt * d)) / sxx
+    ssr = float(np.sum(d * d)) - slope * slope * sxx
+    return bool(slope <= 3.0 * np.sqrt(max(ssr / (n - 2) / sxx, 0.0)))
 
 
 def _truncated_message(src, word, end: EndSpeed) -> str:

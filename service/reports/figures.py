@@ -12,7 +12,7 @@ import io
 import numpy as np
 
 from service.decimation import minmax_indices
-from service.display import parameter_label, plural, unit
+from service.display import parameter_label, parameter_short, plural, unit
 from service.plots import require_matplotlib
 
 DPI = 150  # sharp on paper at the widths used (≤ 180 mm: ≥ 1000 px), a few 100 kB per figure
@@ -176,7 +176,7 @@ def fan_png(prognoses: list, limit_words: dict | None = None) -> bytes | None:
         ax.set_title(f"{parameter_label(p.parameter)}: limit {(limit_words or {}).get(p.parameter) or p.limit_text}",
                      fontsize=8)
         ax.set_xlabel("operations from the trend's first fit", fontsize=7)
-        ax.set_ylabel(f"{p.parameter}, compensated [{unit(p.parameter)}]", fontsize=7)
+        ax.set_ylabel(f"{parameter_short(p.parameter)}, compensated [{unit(p.parameter)}]", fontsize=7)
         ax.legend(fontsize=6, loc="best")
         _style(ax)
     return _png(fig)

@@ -10,7 +10,7 @@ from fastapi.templating import Jinja2Templates
 from jinja2 import Environment, FileSystemLoader, select_autoescape
 
 # significant and signed_change are imported from here by their tests
-from service.display import (finite, parameter_label, parameter_name, plural, quantity, significant,  # noqa: F401
+from service.display import (finite, parameter_label, parameter_name, parameter_short, plural, quantity, significant,  # noqa: F401
                              signed_change, signed_number, unit, watched_words)
 
 from service.findings import likely_cause
@@ -67,7 +67,7 @@ def build_templates() -> Jinja2Templates:
     # nopath: server paths cut to file names in what the page shows (D11, docs/security.md)
     env.filters.update(utc=_utc, iso=_iso, num=_num, fixed=_fixed, pct=_pct_half_width, nopath=redact_paths,
                        sig=significant, change=signed_change, unit=unit, signed=signed_number,
-                       label=parameter_label, pname=parameter_name, quantity=quantity, plural=plural,
+                       label=parameter_label, pname=parameter_name, short=parameter_short, quantity=quantity, plural=plural,
                        cause=likely_cause, watched=watched_words)
     return Jinja2Templates(env=env)
 

@@ -41,7 +41,9 @@ def breaker_alarms_page(request: Request, breaker_id: Id, user: Reader):
         evidence = {p: actions.evidence(session, breaker_id=b.id, parameter=p, settings=settings, limit=400)
                     for p in settings.watched}
         history = list(reversed(actions.history(session, breaker_id=b.id)))
-        ctx = {"b": b, "nav": "alarms", "history": history,
+        from service.storage.crud_vibration import WATCHABLE
+
+        ctx = {"b": b, "nav": "alarms", "history": history, "vibration_read": WATCHABLE,
                "alarm_values": alarm_values(session, [h["alarm"] for h in history]),
                "compensation": actions.compensation(session, breaker_id=b.id, settings=settings),
                "evidence": evidence, "plots": {p: evidence_charts(e, unit(p)) for p, e in evidence.items()},

@@ -16,7 +16,7 @@ SETTINGS = DriftSettings()
 
 def test_thresholds_follow_from_the_design_false_alarm_rates():
     s = SETTINGS
-    assert s.sides == 3  # DO falling, BO both ways
+    assert s.sides == 4  # DO falling, BO both ways, the latch time rising
     arl_w = cusum_arl(0.0, k=s.k, h=s.h_warning, z_cap=s.z_cap)
     arl_a = cusum_arl(0.0, k=s.k, h=s.h_alarm, z_cap=s.z_cap)
     # 1 %: the Markov chain's ARL steps slightly with h where the capped increment's point mass

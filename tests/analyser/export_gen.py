@@ -93,6 +93,8 @@ def export_text(spec: Spec) -> tuple[str, dict]:
     closed = mm > 0.8 * STROKE_MM
     res = np.where(closed, 48.0, 8000.0)
     cur = np.where(closed, 100.0, 0.0)
+    peaks = {f"C{i + 1}": float(np.round(coils[i], 3).max()) for i in range(6)}
+    tr["coil_peak_a"] = peaks
     lines = []
     if spec.header:
         rate_k = (spec.stated_rate or spec.rate) / 1e3
@@ -113,7 +115,8 @@ def export_text(spec: Spec) -> tuple[str, dict]:
             "Contact Travel(T1)(mm) :,182.00,,Contact Travel(T2)(mm) :,0.00,,Contact Travel(T3)(mm) :,0.00,,",
             "Open -Rebound(T1)(mm) :,1.50,,Open - Rebound(T2)(mm) :,0.00,,",
             "Close - Datum Velocity (m/s)(T1) :,4.20,,Open - Datum Velocity (m/s)(T1) :,5.90,,",
-            "Coil Current (A)(C1) :,1.370,,Coil Current (A)(C4) :,1.420,,",
+            # the analyser's coil peak: the column's largest raw sample, as written in the table
+            f"Coil Current (A)(C1) :,{peaks['C1']:.3f},,Coil Current (A)(C4) :,{peaks['C4']:.3f},,",
             "",
         ]
     pad = "," * 14

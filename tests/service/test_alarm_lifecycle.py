@@ -128,7 +128,8 @@ def test_evidence_series_has_band_cusum_thresholds_and_says_not_compensated(env)
     assert all(lo < e < hi for lo, e, hi in zip(ser["band_low"][n0:], ser["expected"][n0:], ser["band_high"][n0:]))
     health = env.client.get("/api/v1/breakers/1/health", headers=env.h("reader")).json()
     assert health["temperature_compensation"] == {"DO": "not temperature-compensated",
-                                                  "BO": "not temperature-compensated"}
+                                                  "BO": "not temperature-compensated",
+                                                  "latch_time_s": "not temperature-compensated"}  # watched by default
     assert env.client.get("/api/v1/breakers/1/alarms/evidence/AO", headers=env.h("reader")).status_code == 404
 
 

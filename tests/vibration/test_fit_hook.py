@@ -82,8 +82,19 @@ def test_a_buffer_shock_the_travel_does_not_explain_moves_the_ratio(breaker, ope
     from service.vibration.characteristics import buffer_offset
 
     cap, truth = opening
-    model = np.where(cap.t > truth.t_motion + 0.025, 1.0, 0.0)  # reaches α0 25 ms after motion
+    def model(t):  # reaches α0 25 ms after motion
+        return np.where(t > truth.t_motion + 0.025, 1.0, 0.0)
+    n = cap.travel.size
     late = [{"name": "buffer_engagement", "t_s": 0.027, "peak_g": 200.0, "clipped": False}]
-    got = buffer_offset(late, model, cap.sample_rate, truth.t_motion, alpha0=0.5)
+    got = buffer_offset(late, model, cap.sample_rate, truth.t_motion, alpha0=0.5, n=n)
     assert got["buffer_offset_s"] == pytest.approx(2e-3, abs=0.05e-3) and got["buffer_ratio"] == pytest.approx(1.08, abs=0.005)
-    assert buffer_offset([], model, cap.sample_rate, truth.t_motion, 0.5)["buffer_offset_s"] is None
+    assert buffer_offset([], model, cap.sample_rate, truth.t_motion, 0.5, n=n)["buffer_offset_s"] is None
+    # the coarse-then-fine search finds the very sample a search of every sample finds
+    for k in (1, 15, 16, 17, n - 3):
+        def step(t, k=k):
+            return (np.asarray(t) * cap.sample_rate >= k - 1e-6).astype(float)
+        exact = int(np.flatnonzero(step(cap.t) >= 0.5)[0])
+        got = buffer_offset(late, step, cap.sample_rate, 0.0, alpha0=0.5, n=n)
+        assert exact == k and 0.027 - got["buffer_offset_s"] == pytest.approx(k / cap.sample_rate, abs=1e-12)
+    assert "never reaches" in buffer_offset(late, lambda t: np.zeros(np.size(t)), cap.sample_rate, 0.0,
+                                            alpha0=0.5, n=n)["buffer_offset_reason"]

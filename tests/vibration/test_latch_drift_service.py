@@ -24,12 +24,18 @@ SETTINGS = DriftSettings(baseline_n=10, watched={"DO": "falling", "latch_time_s"
 T0 = datetime(2026, 1, 1, tzinfo=timezone.utc)
 
 
-def test_vibration_limit_in_ms_and_its_refusals():
+def _with_latch_limit(ms) -> str:
+    """The reference breaker file with its [vibration] latch limit set to ``ms``."""
     text = BREAKER_FILE.read_text()
-    limits = parse_breaker_text(text + "\n[vibration]\nlatch_time_max_ms = 2.5\n", source="b.toml").limits
+    assert "latch_time_max_ms = 2.3" in text
+    return text.replace("latch_time_max_ms = 2.3", f"latch_time_max_ms = {ms}")
+
+
+def test_vibration_limit_in_ms_and_its_refusals():
+    limits = parse_breaker_text(_with_latch_limit(2.5), source="b.toml").limits
     assert limits.root["latch_time_s"].max == pytest.approx(2.5e-3)
     with pytest.raises(BreakerFileError, match="b.toml.*latch_time_max_ms"):
-        parse_breaker_text(text + "\n[vibration]\nlatch_time_max_ms = 0\n", source="b.toml")
+        parse_breaker_text(_with_latch_limit(0), source="b.toml")
 
 
 @pytest.fixture
@@ -37,7 +43,7 @@ def session_maker(tmp_path):
     url = f"sqlite:///{tmp_path / 'hvcb.sqlite3'}"
     upgrade(url)
     Session = session_factory(cached_engine(url))
-    text = BREAKER_FILE.read_text() + "\n[vibration]\nlatch_time_max_ms = 2.5\n"
+    text = _with_latch_limit(2.5)
     cam = (BREAKER_FILE.parent / "reference-252kV.cam.csv").read_text()
     with Session() as s, s.begin():
         crud.upsert_breaker(s, name="reference-252kV", tag="Q1", breaker_file=text,

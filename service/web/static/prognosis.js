@@ -5,7 +5,9 @@
 
   // The card's words come with the data (service/prognosis/words.py), so the page, the API and the
   // fleet say the same thing.
-  var UNIT = { DO: "s⁻¹", BO: "s⁻²", AO: "s⁻²", EO: "s⁻²", AC: "s⁻²", CC: "s⁻²" };
+  var UNIT = { DO: "s⁻¹", BO: "s⁻²", AO: "s⁻²", EO: "s⁻²", AC: "s⁻²", CC: "s⁻²", latch_time_s: "s" };
+  // a characteristic reads in words (service.display.parameter_short); a model symbol as itself
+  var WORDS = { latch_time_s: "trip latch time", buffer_ratio: "buffer shock timing against the travel" };
 
   function val(x, par) {
     if (x === null || x === undefined || !isFinite(x)) { return ""; }
@@ -46,7 +48,7 @@
       // no live legend: without a hovered point it would read "--"; the labels carry the values
       legend: { live: false },
       axes: [{ label: "openings since the trend's start" },
-        { label: par + ", compensated" + (UNIT[par] ? " [" + UNIT[par] + "]" : ""), size: 70 }],
+        { label: (WORDS[par] || par) + ", compensated" + (UNIT[par] ? " [" + UNIT[par] + "]" : ""), size: 70 }],
       series: series,
       bands: [{ series: [4, 2], fill: "rgba(31,95,168,0.15)" }]
     };
