@@ -117,6 +117,8 @@ class DriftSettings(BaseModel):
                              f"baseline_max ({self.baseline_max})")
         if self.design_false_alarms_per_10k > self.design_false_warnings_per_10k:
             raise ValueError("design_false_alarms_per_10k must not exceed design_false_warnings_per_10k")
+        for name in self.breakers:  # an override that leaves nothing watched is refused at load, not at a fit
+            self.for_breaker(name)
         if not self.clear_level < self.h_warning <= self.h_alarm <= self.statistic_cap:
             raise ValueError(
                 "the derived thresholds must satisfy clear_level < h_warning <= h_alarm <= "
@@ -152,6 +154,16 @@ class DriftSettings(BaseModel):
         over = self.breakers.get(name) if name is not None else None
         if not over:
             return self
+        if name not in self.per_breaker:  # designed once per breaker, not on every fit
+            self.per_breaker[name] = self._with_overrides(name, over)
+        return self.per_breaker[name]
+
+    @cached_property
+    def per_breaker(self) -> dict:
+        """breaker name -> its ``for_breaker`` settings, built on first use."""
+        return {}
+
+    def _with_overrides(self, name: str, over: Mapping[str, str]) -> "DriftSettings":
         watched = {**self.watched, **over}
         watched = {p: d for p, d in watched.items() if d != OFF}
         if not watched:

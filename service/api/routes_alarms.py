@@ -158,8 +158,8 @@ def alarm_evidence(breaker_id: BreakerId, parameter: Annotated[str, PathParam(ma
                    session: SessionDep, settings: SettingsDep, _: ReaderDep) -> dict:
     """The evidence plot's data: each good fit's value with the baseline's expected value and
     +-2 sigma band at its temperature, the temperature, the CUSUM and its thresholds."""
-    breaker_id = _breaker(session, breaker_id).id
-    ds = settings.drift_settings
+    b = _breaker(session, breaker_id)
+    breaker_id, ds = b.id, settings.drift_settings.for_breaker(b.name)
     if parameter not in ds.watched:
         raise HTTPException(404, f"{parameter} is not watched for drift (watched: {', '.join(ds.watched)})")
     return actions.evidence(session, breaker_id=breaker_id, parameter=parameter, settings=ds)

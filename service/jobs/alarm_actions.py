@@ -84,8 +84,9 @@ def set_temperature(session, *, breaker: BreakerRow, temperature_c: float, by: s
 
 def compensation(session, *, breaker_id: int, settings) -> dict[str, dict]:
     """Per watched parameter: is the baseline temperature-compensated, and what it has learnt."""
-    from service.jobs.fit import _drift_state
+    from service.jobs.fit import _drift_state, breaker_settings
 
+    settings = breaker_settings(session, breaker_id, settings)
     out = {}
     for p in settings.watched:
         _, state = _drift_state(session, breaker_id, p, settings)
@@ -123,8 +124,9 @@ def evidence(session, *, breaker_id: int, parameter: str, settings, limit: int =
     expected value and band (baseline at the fit's temperature), temperature, CUSUM, thresholds."""
     from service.alarms import drift
 
-    settings.direction(parameter)
     breaker = session.get(BreakerRow, breaker_id)
+    settings = settings.for_breaker(breaker.name)
+    settings.direction(parameter)
     since = breaker.baseline_reset_at
     rows = crud_alarms.parameter_series(session, breaker_id=breaker_id, name=parameter, since=since)[-limit:]
     state = drift.DriftState.new(parameter, settings)

@@ -241,6 +241,7 @@ def update_drift(session, *, breaker_id: int, options: JobOptions | None = None,
 
     session.execute(select(BreakerRow.id).where(BreakerRow.id == breaker_id).with_for_update())
     breaker = session.get(BreakerRow, breaker_id)
+    settings = settings.for_breaker(breaker.name)
     if breaker.out_of_service_since is not None:
         return []  # maintenance: nothing is watched; the baseline is reset at its end
     all_events = []
@@ -326,10 +327,18 @@ def _message(event) -> str:
             f"likely {likely_cause(event.parameter, direction)}")
 
 
+def breaker_settings(session, breaker_id: int, settings):
+    """The drift settings of breaker ``breaker_id``: the service's, with the breaker's own
+    ``[alarms.breakers.NAME]`` overrides (a parameter turned off, thresholds for its sides)."""
+    breaker = session.get(BreakerRow, breaker_id)
+    return settings.for_breaker(breaker.name if breaker is not None else None)
+
+
 def acknowledge_drift(session, *, alarm: AlarmRow, by: str, settings) -> None:
     """Keep the detector's state in step with an acknowledgement made through the API."""
     from service.alarms import actions
 
+    settings = breaker_settings(session, alarm.breaker_id, settings)
     row, state = _drift_state(session, alarm.breaker_id, alarm.parameter, settings)
     if row is not None and state.active and state.episode == alarm.episode:
         state, _ = actions.acknowledge(state, by=by, time=utcnow())
@@ -341,6 +350,7 @@ def reset_baseline(session, *, breaker_id: int, by: str, settings) -> int:
     from service.alarms import actions
 
     session.execute(select(BreakerRow.id).where(BreakerRow.id == breaker_id).with_for_update())
+    settings = breaker_settings(session, breaker_id, settings)
     now = utcnow()
     cleared = 0
     for parameter in settings.watched:
@@ -362,6 +372,7 @@ def drift_status(session, *, breaker_id: int, settings) -> str:
     from service.alarms import actions
     from service.storage.crud_alarms import shelved_parameters
 
+    settings = breaker_settings(session, breaker_id, settings)
     states = [_drift_state(session, breaker_id, p, settings)[1] for p in settings.watched]
     return actions.health_status(states, shelved_parameters(session, breaker_id=breaker_id, now=utcnow()))
 

@@ -13,7 +13,7 @@ from service.alarms.maintenance import MaintenanceError, restart, touched
 from service.storage.maintenance import NOTE_MAX
 from service.storage.models import BreakerRow, MaintenanceEventRow, utcnow
 
-from .fit import _drift_state, _save_state, apply_alarm_event, update_drift
+from .fit import _drift_state, _save_state, apply_alarm_event, breaker_settings, update_drift
 
 
 def record_event(session: Session, *, breaker_id: int, kind: str, done_at: datetime | None, done_by: str,
@@ -37,6 +37,7 @@ def record_event(session: Session, *, breaker_id: int, kind: str, done_at: datet
     row = MaintenanceEventRow(breaker_id=breaker_id, kind=kind, done_at=done_at, done_by=done_by.strip()[:200],
                               note=note, parameters=params, recorded_by=recorded_by[:200], recorded_at=now)
     session.add(row)
+    settings = breaker_settings(session, breaker_id, settings)
     for parameter in settings.watched:
         state_row, state = _drift_state(session, breaker_id, parameter, settings)
         fresh, events = restart(state, kind=kind, done_at=done_at, by=row.done_by)

@@ -231,6 +231,7 @@ def gather(session, *, breaker: BreakerRow, settings, window: Window = Window())
     from service.jobs.prognosis import breaker_prognoses
     from service.storage import crud
 
+    settings = settings.for_breaker(breaker.name)  # its [alarms.breakers.NAME] overrides
     file_problem = ""
     try:
         file_model = parse_breaker_text(breaker.breaker_file, source=f"of breaker {breaker.name!r}")

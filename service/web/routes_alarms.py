@@ -38,6 +38,7 @@ def breaker_alarms_page(request: Request, breaker_id: Id, user: Reader):
     settings = request.app.state.settings.drift_settings
     with db_session(request) as session:
         b = _breaker(session, breaker_id)
+        settings = settings.for_breaker(b.name)
         evidence = {p: actions.evidence(session, breaker_id=b.id, parameter=p, settings=settings, limit=400)
                     for p in settings.watched}
         history = list(reversed(actions.history(session, breaker_id=b.id)))

@@ -123,7 +123,7 @@ class TrendStore:
 
     # -- the body ------------------------------------------------------------------------------
     def _encode(self, session, breaker, entry: _Entry, settings) -> bytes:
-        ds = settings.drift_settings
+        ds = settings.drift_settings.for_breaker(breaker.name)
         reset_at = breaker.baseline_reset_at
         alarms = crud.list_alarms(session, state="all", breaker_id=breaker.id)
         params = {}

@@ -145,3 +145,28 @@ def test_a_never_fed_parameter_does_not_keep_the_status_unknown_but_no_fit_at_al
     collecting = [*monitoring[:2], DriftState(parameter="latch_time_s", collected=((1, 1e-3, None, None),),
                                                last_operation_id=1)]
     assert health_status(collecting) == "unknown"  # a latch being learnt is still learnt
+
+
+def test_served_a_breaker_with_its_latch_turned_off_raises_nothing_on_it(session_maker):
+    from service.storage.models import DriftStateRow
+
+    off = DriftSettings(breakers={"reference-252kV": {"latch_time_s": "off"}})
+    rng = np.random.default_rng(3)
+    events = []
+    for i in range(ONSET + 20):  # the sticking latch that alarms with the shipped settings
+        latch = HEALTHY_S * (1 + rng.normal(0, 0.02)) + max(0, i - ONSET + 1) * PER_OPENING_S
+        chars = {"latch_time_s": latch, "vibration_events": []}
+        with session_maker() as s, s.begin():
+            op, _ = crud.create_operation(s, capture_key=f"off{i}", breaker_id=1, kind="open",
+                                          occurred_at=T0 + timedelta(hours=i), source="replay",
+                                          capture_path="/nonexistent.cfg", capture_sha256="0" * 64, flags=[],
+                                          sample_rate=1.0, n_samples=1)
+            crud.claim_fit(s, operation_id=op.id, worker="test")
+            crud.store_fit_result(s, operation_id=op.id, curve=None, result={
+                "parameters": {"AO": 3424.0, "BO": 4806.0, "DO": 39.5 * (1 + rng.normal(0, 0.01)), "EO": 3950.0},
+                "identifiable": True, "characteristics": chars})
+            events += update_drift(s, breaker_id=1, settings=off)
+    assert not [e for e in events if e.parameter == "latch_time_s"]
+    with session_maker() as s:
+        assert s.get(DriftStateRow, (1, "latch_time_s")) is None  # never fed to a detector
+        assert drift_status(s, breaker_id=1, settings=off) in ("ok", "learning")
