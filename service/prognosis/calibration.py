@@ -86,8 +86,9 @@ class Calibration:
         "median", "lo", "hi": the level's quantiles [unit], compensated}; bands : horizon band's
         lower edge -> Tails; crossing : {"lo", "hi": offsets of the crossing's tail levels [-],
         "n": crossings judged, "pending": [[fits scored when made, p05, p95 or None]]};
-    fits : fits scored since the restart; last_id : the last operation scored (a retried fit is
-        not scored twice)
+    fits : fits scored since the restart; last_id, last_time : the last operation scored or
+        forecast from (its id and ISO time: a retried fit is not scored twice, and the worker reads
+        only the fits after it)
     """
 
     key: str | None = None
@@ -96,12 +97,13 @@ class Calibration:
     crossing: dict = field(default_factory=lambda: {"lo": 0.0, "hi": 0.0, "n": 0, "pending": []})
     fits: int = 0
     last_id: int | None = None
+    last_time: str | None = None
 
     def to_dict(self) -> dict:
         return {"version": 1, "key": self.key, "forecasts": self.forecasts,
                 "bands": {str(k): vars(t).copy() for k, t in self.bands.items()},
                 "crossing": {**self.crossing, "pending": [list(p) for p in self.crossing["pending"]]},
-                "fits": self.fits, "last_id": self.last_id}
+                "fits": self.fits, "last_id": self.last_id, "last_time": self.last_time}
 
     @classmethod
     def from_dict(cls, d: dict | None, key: str | None = None) -> Calibration:
@@ -117,7 +119,7 @@ class Calibration:
         return cls(key=d.get("key"), forecasts=[dict(f) for f in d.get("forecasts") or []], bands=bands,
                    crossing={"lo": float(cr.get("lo", 0.0)), "hi": float(cr.get("hi", 0.0)), "n": int(cr.get("n", 0)),
                              "pending": [list(p) for p in cr.get("pending") or []]},
-                   fits=int(d.get("fits", 0)), last_id=d.get("last_id"))
+                   fits=int(d.get("fits", 0)), last_id=d.get("last_id"), last_time=d.get("last_time"))
 
 
 def band_of(h: int) -> int:
@@ -164,9 +166,11 @@ def _aci(a: float, err: bool, t: int) -> float:
     return min(max(a + step(t) * (ALPHA - float(err)), A_MIN), A_MAX)
 
 
-def score(cal: Calibration, value: float, noise_sd: float, operation_id: int | None = None) -> Calibration:
+def score(cal: Calibration, value: float, noise_sd: float, operation_id: int | None = None,
+          time: str | None = None) -> Calibration:
     """The state after one good fit: ``value`` compensated as the forecasts are [unit],
-    ``noise_sd`` its run-to-run sd sigma / sqrt(w) [unit]. O(PENDING): a few microseconds."""
+    ``noise_sd`` its run-to-run sd sigma / sqrt(w) [unit], its operation's id and ISO time.
+    O(PENDING): a few microseconds."""
     if operation_id is not None and cal.last_id is not None and operation_id <= cal.last_id:
         return cal
     bands = {k: replace(t) for k, t in cal.bands.items()}
@@ -188,20 +192,26 @@ def score(cal: Calibration, value: float, noise_sd: float, operation_id: int | N
             t.v_hi += (v_hi - t.v_hi) / t.n
         forecasts.append({**f, "seen": h})
     return replace(cal, forecasts=forecasts, bands=bands, fits=cal.fits + 1,
-                   last_id=operation_id if operation_id is not None else cal.last_id)
+                   last_id=operation_id if operation_id is not None else cal.last_id,
+                   last_time=time if time is not None else cal.last_time)
 
 
-def issue(cal: Calibration, ahead, median, lo, hi, crossing: tuple | None = None) -> Calibration:
+def issue(cal: Calibration, ahead, median, lo, hi, crossing: tuple | None = None, *,
+          operation_id: int | None = None, time: str | None = None) -> Calibration:
     """The state after a prognosis: its level's quantiles [unit] at ``ahead`` openings [openings]
     become a pending forecast, and its crossing interval (p05, p95 or None) [openings] a pending
-    crossing (None: no crossing forecast)."""
+    crossing (None: no crossing forecast). ``operation_id``, ``time``: the prognosis's last fit
+    (the fits after it are the ones its forecast is scored on)."""
     f = {"seen": 0, "ahead": [float(a) for a in ahead], "median": [float(x) for x in median],
          "lo": [float(x) for x in lo], "hi": [float(x) for x in hi]}
     pending = list(cal.crossing["pending"])
     if crossing is not None and crossing[0] is not None:
         pending = (pending + [[cal.fits, float(crossing[0]), None if crossing[1] is None else float(crossing[1])]])
         pending = pending[-CROSSING_PENDING:]
-    return replace(cal, forecasts=(cal.forecasts + [f])[-PENDING:], crossing={**cal.crossing, "pending": pending})
+    out = replace(cal, forecasts=(cal.forecasts + [f])[-PENDING:], crossing={**cal.crossing, "pending": pending})
+    if operation_id is not None and (cal.last_id is None or operation_id > cal.last_id):
+        out = replace(out, last_id=operation_id, last_time=time)
+    return out
 
 
 def crossed(cal: Calibration) -> Calibration:
