@@ -108,8 +108,9 @@ def run_fit_job(operation_id: int, options: JobOptions | dict) -> dict:
         # share-locks it): the other way round two workers deadlock in update_drift (PostgreSQL).
         session.execute(select(BreakerRow.id).where(BreakerRow.id == breaker_row.id).with_for_update())
         landed = crud.store_fit_result(session, operation_id=operation_id, result=result_dict, curve=curve)
-        if landed:
-            update_drift(session, breaker_id=breaker_row.id, options=options)
+        events = update_drift(session, breaker_id=breaker_row.id, options=options, prognoses=False) if landed else []
+    if landed:  # the fit and its alarms are visible; the prognosis follows in its own transaction
+        refresh_prognoses(Session, breaker_id=breaker_row.id, options=options, events=events)
     return {"operation_id": operation_id, "status": "done", "landed": landed, "runtime_s": runtime}
 
 
@@ -203,8 +204,29 @@ def _save_state(session, row, breaker_id: int, state) -> None:
     row.updated_at = utcnow()
 
 
-def update_drift(session, *, breaker_id: int, options: JobOptions | None = None, settings=None) -> list:
-    """Feed the breaker's new good fits to the drift detector and store the alarm events.
+def refresh_prognoses(Session, *, breaker_id: int, options: JobOptions, events: list) -> None:
+    """Refresh the breaker's stored prognoses that are due (``service.jobs.prognosis.refresh_due``),
+    after its fit committed: a failure here leaves the fit and its alarms stored, and the next
+    fit finds the prognosis still due."""
+    from service.alarms.settings import DriftSettings
+    from service.jobs.prognosis import store_prognoses
+
+    settings = DriftSettings.from_mapping(options.alarms or {})
+    try:
+        with Session() as session, session.begin():
+            session.execute(select(BreakerRow.id).where(BreakerRow.id == breaker_id).with_for_update())
+            store_prognoses(session, breaker_id=breaker_id, settings=settings,
+                            force=frozenset(ev.parameter for ev in events))
+    except Exception as exc:  # the fit stands; say why its prognosis did not follow
+        from service.errors import in_words
+
+        log.error("the prognosis of breaker %s was not refreshed: %s", breaker_id, in_words(exc), exc_info=exc)
+
+
+def update_drift(session, *, breaker_id: int, options: JobOptions | None = None, settings=None,
+                 prognoses: bool = True) -> list:
+    """Feed the breaker's new good fits to the drift detector and store the alarm events; with
+    ``prognoses``, refresh the stored prognoses that are due in the same transaction.
 
     Runs under a lock on the breaker row (PostgreSQL) or the database write lock (SQLite), so
     two workers finishing fits of one breaker at once cannot double-count. A fit that finishes
@@ -246,10 +268,12 @@ def update_drift(session, *, breaker_id: int, options: JobOptions | None = None,
             all_events.extend(events)
         _save_state(session, row, breaker_id, state)
     session.flush()
-    from service.jobs.prognosis import store_prognoses
+    if prognoses:
+        from service.jobs.prognosis import store_prognoses
 
-    store_prognoses(session, breaker_id=breaker_id, settings=settings)  # as each fit lands
-    session.flush()
+        store_prognoses(session, breaker_id=breaker_id, settings=settings,
+                        force=frozenset(ev.parameter for ev in all_events))
+        session.flush()
     return all_events
 
 
