@@ -33,8 +33,8 @@ import numpy as np
 from service.alarms import DriftSettings, DriftState, FitObservation, update
 from service.alarms.maintenance import restart
 from service.breaker_limits import ParameterLimit
-from service.prognosis import compensated, prognose
 from service.prognosis import calibration as cal_
+from service.prognosis import compensated, prognose
 
 Z95 = 1.959964
 _EPS = timedelta(microseconds=1)  # a logged entry is done just before the fit it restarts from

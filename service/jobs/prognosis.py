@@ -124,7 +124,6 @@ def _history(session, breaker: BreakerRow, parameter: str):
     logged maintenance touching it (service/storage/maintenance.py), oldest first: the tail of
     what the detector was fed."""
     from service.alarms import FitObservation
-
     from service.storage.crud_vibration import WATCHABLE, characteristic_history
 
     since = _restarted_at(session, breaker, parameter)
