@@ -8,7 +8,10 @@ per opening, BO flat. At 1 000, 2 000, 5 000 and 10 000 fits the drift detector 
 date (service.jobs.fit.update_drift, without its prognosis hook) and the worker's prognosis hook,
 ``store_prognoses`` (read the history, compute, store), is timed ``--repeats`` times: with the
 window of the last ``HISTORY_FITS`` fits (what the worker does) and with the whole history since
-the reset (what it did before issue 37). Writes bench/results/prognosis_cost.json.
+the reset (what it did before issue 37). Since issue 56 the refresh runs only when due, so it is
+timed forced (``force``: the full prognosis), and the per-fit path beside it: one new fit, then
+``store_prognoses`` unforced (the calibration's scoring of that fit, issue 55, and the due
+check; a refresh when one falls due is counted apart). Writes bench/results/prognosis_cost.json.
 """
 
 from __future__ import annotations
@@ -52,13 +55,35 @@ def add_fits(Session, breaker_id: int, lo: int, hi: int, rng) -> None:
 
 
 def timed(Session, breaker_id: int, settings, repeats: int) -> list[float]:
+    """The forced refresh of both limited parameters [ms]."""
     out = []
     for _ in range(repeats):
         with Session() as s, s.begin():
             t0 = time.perf_counter()
-            job.store_prognoses(s, breaker_id=breaker_id, settings=settings)
+            job.store_prognoses(s, breaker_id=breaker_id, settings=settings, force={"DO", "BO"})
             out.append((time.perf_counter() - t0) * 1e3)
     return out
+
+
+def per_fit(Session, breaker_id: int, settings, first: int, repeats: int, rng) -> tuple[list[float], int]:
+    """(ms of the unforced hook after each of ``repeats`` new fits when nothing fell due, how many
+    fell due): the calibration's scoring and the due check, as the worker runs them per fit."""
+    import service.jobs.fit as fitjob
+
+    quiet, due = [], 0
+    for i in range(first, first + repeats):
+        add_fits(Session, breaker_id, i, i + 1, rng)
+        with Session() as s, s.begin():
+            fitjob.update_drift(s, breaker_id=breaker_id, settings=settings, prognoses=False)
+        with Session() as s, s.begin():
+            t0 = time.perf_counter()
+            done = job.store_prognoses(s, breaker_id=breaker_id, settings=settings)
+            ms = (time.perf_counter() - t0) * 1e3
+        if done:
+            due += 1
+        else:
+            quiet.append(ms)
+    return quiet, due
 
 
 def main(argv=None) -> int:
@@ -81,24 +106,24 @@ def main(argv=None) -> int:
             b = crud.register_breaker_file(s, path=BREAKER_FILE)
             breaker_id = b.id
         done = 0
-        hook = job.store_prognoses
         for n in (1000, 2000, 5000, 10_000):
             if n > a.fits:
                 break
             add_fits(Session, breaker_id, done, n, rng)
             done = n
-            job.store_prognoses = lambda *args, **kw: []  # the detector alone: the hook is timed below
-            try:
-                with Session() as s, s.begin():
-                    fitjob.update_drift(s, breaker_id=breaker_id, settings=settings)
-            finally:
-                job.store_prognoses = hook
+            with Session() as s, s.begin():  # the detector alone: the hook is timed below
+                fitjob.update_drift(s, breaker_id=breaker_id, settings=settings, prognoses=False)
             row = {"fits": n}
             for name, limit in (("window", window), ("whole_history", 10 ** 9)):
                 job.HISTORY_FITS = limit
                 ms = timed(Session, breaker_id, settings, a.repeats)
                 row[name] = {"median_ms": round(float(np.median(ms)), 1), "p95_ms": round(float(np.percentile(ms, 95)), 1)}
             job.HISTORY_FITS = window
+            quiet, due = per_fit(Session, breaker_id, settings, done, a.repeats, rng)
+            done += a.repeats
+            row["per_fit_not_due"] = ({"median_ms": round(float(np.median(quiet)), 2),
+                                       "p95_ms": round(float(np.percentile(quiet, 95)), 2)} if quiet else None)
+            row["per_fit_fell_due"] = due
             rows.append(row)
             print(json.dumps(row), flush=True)
     first, last = rows[0], rows[-1]

@@ -33,7 +33,8 @@ import numpy as np
 from service.alarms import DriftSettings, DriftState, FitObservation, update
 from service.alarms.maintenance import restart
 from service.breaker_limits import ParameterLimit
-from service.prognosis import prognose
+from service.prognosis import calibration as cal_
+from service.prognosis import compensated, prognose
 
 Z95 = 1.959964
 _EPS = timedelta(microseconds=1)  # a logged entry is done just before the fit it restarts from
@@ -48,6 +49,8 @@ class Case:
     operation in the prognosis's frame, given the detector's state then [unit] (None: healthy,
     judged by its median only); times_s : operation times [s] (dates), or None;
     maintenance : [(fit index, kind)]: logged entries (the detector restarts at that fit's time)
+    due : fits fed (1-based counts) at which the prognosis is also made, as the worker makes it
+        when due, but not asked: its forecasts are what the calibration scores the later fits on
     """
 
     name: str
@@ -60,6 +63,7 @@ class Case:
     times_s: np.ndarray | None = None
     maintenance: list = field(default_factory=list)
     extra: dict = field(default_factory=dict)
+    due: list = field(default_factory=list)
 
 
 def first_past(level: np.ndarray, bound: float, direction: str) -> int | None:
@@ -88,29 +92,68 @@ def covered(pred, truth, horizon: float | None) -> bool:
     return lo <= truth <= hi
 
 
-def run_case(case: Case, settings: DriftSettings) -> list[dict]:
-    """Feed the case's fits, ask at each stop, and return one row per question."""
+def observe(cal, state: DriftState, o: FitObservation):
+    """The calibration after fit ``o`` (service.prognosis.calibration.score), compensated as the
+    prognosis compensates it; unchanged while the detector learns its baseline."""
+    if not cal.forecasts or state.model is None:
+        return cal
+    y, w, _ = compensated(state, [o])
+    return cal_.score(cal, float(y[0]), state.model.sd / math.sqrt(max(float(w[0]), 1e-12)), o.operation_id)
+
+
+def after_prognosis(cal, prog):
+    """The calibration after a prognosis: its forecast pending, and a crossing judged."""
+    if prog.status == "crossed":
+        cal = cal_.crossed(cal)
+    if prog.forecast:
+        q = prog.operations_to_limit
+        crossing = None if q is None or prog.status != "ok" else (q.p05, q.p95)
+        cal = cal_.issue(cal, prog.forecast["ahead"], prog.forecast["median"], prog.forecast["lo"],
+                         prog.forecast["hi"], crossing)
+    return cal
+
+
+def run_case(case: Case, settings: DriftSettings, *, calibrate: bool = True, restart_at: int | None = None) -> list[dict]:
+    """Feed the case's fits, ask at each stop, and return one row per question.
+
+    calibrate : the breaker's own forecast scores correct the interval (calibration.py);
+    restart_at : after this many fits the detector's and the calibration's states go through
+        their JSON (a worker restart), as the service stores them
+    """
     state, rows, k = DriftState.new(case.parameter, settings), [], 0
+    cal = cal_.Calibration(key="reset")
     since = 0  # first fit the prognosis sees: the last logged maintenance's
     log = dict(case.maintenance)
+    due = set(case.due) if calibrate else set()
     for j, o in enumerate(case.obs, start=1):
         i = j - 1
         if i in log:
             state, _ = restart(state, kind=log[i], done_at=o.time - _EPS, by="bench")
             since = i
+            cal = cal_.Calibration(key=f"maintenance at fit {i}")
         state, _ = update(state, o, settings)
+        if calibrate:
+            cal = observe(cal, state, o)
+        if restart_at is not None and j == restart_at:
+            state = DriftState.from_dict(json.loads(json.dumps(state.to_dict())))
+            cal = cal_.Calibration.from_dict(json.loads(json.dumps(cal.to_dict())), key=cal.key)
+        if j in due and j != case.stops[k]:
+            cal = after_prognosis(cal, prognose(state, case.obs[since:j], case.limit, calibration=cal))
+            continue
         if j != case.stops[k]:
             continue
         t0 = time.perf_counter()
-        prog = prognose(state, case.obs[since:j], case.limit)
+        prog = prognose(state, case.obs[since:j], case.limit, calibration=cal if calibrate else None)
         cost = time.perf_counter() - t0
+        if calibrate:
+            cal = after_prognosis(cal, prog)
         q, dq = prog.operations_to_limit, prog.date_to_limit
         row = {"case": case.name, "parameter": case.parameter, "at": j, "fraction": case.fractions[k],
                "status": prog.status, "alarm": state.level, "basis": prog.basis, "cost_ms": cost * 1e3,
                "pred": [None, None, None] if q is None else [q.p05, q.median, q.p95],
                "horizon": prog.horizon_operations, "rate_per_day": prog.rate_per_day,
                "change_before_crossing": prog.change_before_crossing, "notes": list(prog.notes),
-               "paths": prog.paths, **case.extra}
+               "paths": prog.paths, "calibration": prog.calibration, **case.extra}
         if case.times_s is not None:
             now = o.time
             row["pred_days"] = ([None, None, None] if dq is None else

@@ -57,6 +57,7 @@ class BlindHistory:
     reference_temperature_c: float
     notes: str
     true_crosses_within_10y: bool | None = None  # healthy: true path crosses in 10 y at its duty
+    sensor_offset: np.ndarray | None = None  # additive offset of the observed only (a remounted transducer)
 
 
 def truth_crossing(h: BlindHistory) -> int | None:
@@ -163,7 +164,8 @@ def _assemble(rng, shape, parameter, baseline, limit_change, times, temp, level,
         obs = obs + offset
     t_ref = float(np.mean(temp[:n_ref])) if temp is not None else 20.0
     return BlindHistory(shape, parameter, float(baseline), float(limit_change), times, temp,
-                        level, effect, obs, ci, degrading, t_ref, notes, crosses_10y)
+                        level, effect, obs, ci, degrading, t_ref, notes, crosses_10y,
+                        np.zeros(n) if offset is None else np.asarray(offset, dtype=float))
 
 
 def _cut(rng, level: np.ndarray, baseline: float, lc: float, min_tail: int = 15) -> int | None:

@@ -48,12 +48,82 @@ def _restarted_at(session, breaker: BreakerRow, parameter: str) -> datetime | No
     return max(since) if since else None
 
 
+def _rows_after(session, breaker: BreakerRow, parameter: str, since: datetime | None):
+    """The parameter's good fits at or after ``since`` (all since the restart when None), oldest first."""
+    from service.storage.crud_vibration import WATCHABLE, characteristic_history
+
+    if parameter in WATCHABLE:
+        return characteristic_history(session, breaker_id=breaker.id, name=parameter, since=since)
+    return crud.good_parameter_history(session, breaker_id=breaker.id, name=parameter, since=since)
+
+
+def _observations(session, rows):
+    from service.alarms import FitObservation
+
+    temps = operation_temperatures(session, {r.operation_id for r in rows})
+    return [FitObservation(operation_id=r.operation_id, time=r.occurred_at, value=r.value,
+                           ci95=(r.ci_low, r.ci_high) if r.ci_low is not None and r.ci_high is not None else None,
+                           temperature=temps.get(r.operation_id))
+            for r in rows]
+
+
+# The calibration's state (service/prognosis/calibration.py) lives in the stored prognosis's
+# result under this key: scored on every fit (a query of the fits since the last scored one and
+# a few microseconds each), carried into the next refresh, restarted with the history.
+CALIBRATION = "calibration_state"
+
+
+def calibration_key(session, breaker: BreakerRow, parameter: str) -> str:
+    """The history the calibration belongs to: its start (a baseline reset or a logged repair)."""
+    since = _restarted_at(session, breaker, parameter)
+    return "reset" if since is None else _aware(since).isoformat()
+
+
+def stored_calibration(session, *, breaker: BreakerRow, parameter: str, stored: PrognosisRow | None, state):
+    """The parameter's calibration with every good fit since its last scored one scored
+    (``calibration.score``): a fresh one after a reset or a logged repair."""
+    from service.prognosis import calibration as cal_
+    from service.prognosis import compensated
+
+    key = calibration_key(session, breaker, parameter)
+    cal = cal_.Calibration.from_dict((stored.result or {}).get(CALIBRATION) if stored is not None else None, key=key)
+    if not cal.forecasts or cal.last_time is None or state is None or state.model is None:
+        return cal
+    t = datetime.fromisoformat(cal.last_time)
+    rows = [r for r in _rows_after(session, breaker, parameter, t)
+            if (_aware(r.occurred_at), r.operation_id) > (_aware(t), cal.last_id or 0)]
+    if not rows:
+        return cal
+    obs = _observations(session, rows)
+    y, w, _ = compensated(state, obs)
+    sd = state.model.sd
+    for o, y_i, w_i in zip(obs, y, w):
+        cal = cal_.score(cal, float(y_i), sd / max(float(w_i), 1e-12) ** 0.5, o.operation_id, _aware(o.time).isoformat())
+    return cal
+
+
+def _after_prognosis(cal, p, last):
+    """The calibration after prognosis ``p`` made on the fits up to ``last``: its forecast
+    pending, and the pending crossings judged when the trend has passed its limit."""
+    from service.prognosis import calibration as cal_
+
+    if cal is None:
+        return None
+    if p.status == "crossed":
+        cal = cal_.crossed(cal)
+    if p.forecast and last is not None:
+        q = p.operations_to_limit
+        crossing = None if q is None or p.status != "ok" else (q.p05, q.p95)
+        cal = cal_.issue(cal, p.forecast["ahead"], p.forecast["median"], p.forecast["lo"], p.forecast["hi"],
+                         crossing, operation_id=last.operation_id, time=_aware(last.time).isoformat())
+    return cal
+
+
 def _history(session, breaker: BreakerRow, parameter: str):
     """The parameter's last ``HISTORY_FITS`` good fits since the baseline reset or the last
     logged maintenance touching it (service/storage/maintenance.py), oldest first: the tail of
     what the detector was fed."""
     from service.alarms import FitObservation
-
     from service.storage.crud_vibration import WATCHABLE, characteristic_history
 
     since = _restarted_at(session, breaker, parameter)
@@ -79,22 +149,30 @@ def breaker_prognoses(session, *, breaker: BreakerRow, settings, horizon_years: 
 
 
 def parameter_prognosis(session, *, breaker: BreakerRow, parameter: str, limit, settings,
-                        horizon_years: float = 10.0) -> tuple:
-    """``(Prognosis, history)`` of one limited parameter: its prognosis and the fits it read."""
+                        horizon_years: float = 10.0, stored: PrognosisRow | None = None,
+                        calibration=None) -> tuple:
+    """``(Prognosis, history, calibration)`` of one limited parameter: its prognosis, the fits
+    it read, and the calibration it was read with (the stored one brought up to date, or
+    ``calibration`` when given; None for a parameter that is not watched)."""
     from service.alarms import DriftState
     from service.prognosis import Prognosis, prognose
 
     if parameter not in settings.watched:
         return Prognosis(parameter, None, None, limit.describe(), status="no trend",
                          reason=f"{parameter} is not watched by the drift detector, which learns "
-                                "its compensated baseline ([alarms] watched)"), []
+                                "its compensated baseline ([alarms] watched)"), [], None
     row = session.get(DriftStateRow, (breaker.id, parameter))
     state = DriftState.from_dict(row.state) if row is not None and row.state else DriftState.new(parameter, settings)
     history = _history(session, breaker, parameter)
+    if calibration is None:
+        if stored is None:
+            stored = session.get(PrognosisRow, (breaker.id, parameter))
+        calibration = stored_calibration(session, breaker=breaker, parameter=parameter, stored=stored, state=state)
     try:
-        return prognose(state, history, limit, horizon_years=horizon_years), history
+        return prognose(state, history, limit, horizon_years=horizon_years, calibration=calibration), history, calibration
     except ValueError as exc:  # e.g. a non-positive baseline for a relative limit: say so, not a 500
-        return Prognosis(parameter, None, None, limit.describe(), status="no trend", reason=str(exc)), history
+        return (Prognosis(parameter, None, None, limit.describe(), status="no trend", reason=str(exc)), history,
+                calibration)
 
 
 def soonest_key(p) -> tuple:
@@ -167,26 +245,46 @@ def refresh_due(session, *, breaker: BreakerRow, parameter: str, limit, settings
     return _fits_since(session, breaker, parameter, r["as_of"]) >= max(1, int(span // REFRESH_SHARE))
 
 
+def _scored(session, breaker: BreakerRow, parameter: str, row: PrognosisRow | None, settings):
+    """The calibration of a watched parameter brought up to date (``stored_calibration``); None
+    for one the detector does not watch."""
+    from service.alarms import DriftState
+
+    if parameter not in settings.watched:
+        return None
+    srow = session.get(DriftStateRow, (breaker.id, parameter))
+    state = DriftState.from_dict(srow.state) if srow is not None and srow.state else None
+    return stored_calibration(session, breaker=breaker, parameter=parameter, stored=row, state=state)
+
+
 def store_prognoses(session, *, breaker_id: int, settings, force: frozenset | set = frozenset()) -> list:
     """Refresh and store the breaker's prognoses that are due (``refresh_due``; every parameter
-    in ``force``, e.g. one whose alarm just changed). Returns those recomputed."""
+    in ``force``, e.g. one whose alarm just changed), and on every call score the fits since the
+    last one into each parameter's calibration (cheap: ``stored_calibration``). Returns those
+    recomputed."""
     breaker = session.get(BreakerRow, breaker_id)
     now = utcnow()
     stored = {r.parameter: r for r in session.scalars(select(PrognosisRow).where(PrognosisRow.breaker_id == breaker_id))}
     progs = []
     for parameter, limit in limits_of(breaker).items():
         row = stored.pop(parameter, None)
+        cal = _scored(session, breaker, parameter, row, settings)
         if parameter not in force and not refresh_due(session, breaker=breaker, parameter=parameter, limit=limit,
                                                       settings=settings, stored=row):
+            if cal is not None and row is not None and row.result and cal.to_dict() != row.result.get(CALIBRATION):
+                row.result = {**row.result, CALIBRATION: cal.to_dict()}  # a new dict: the JSON column is rewritten
             continue
-        p, history = parameter_prognosis(session, breaker=breaker, parameter=parameter, limit=limit, settings=settings)
+        p, history, cal = parameter_prognosis(session, breaker=breaker, parameter=parameter, limit=limit,
+                                              settings=settings, calibration=cal)
+        cal = _after_prognosis(cal, p, history[-1] if history else None)
         row = row or PrognosisRow(breaker_id=breaker_id, parameter=parameter)
         q = p.operations_to_limit
         row.median_operations = float(q.median) if q is not None and q.median is not None else None
         last = history[-1] if history else None
         row.result = {**as_json(p), "history_fits": len(history),
                       "as_of": {"operation_id": last.operation_id, "time": _aware(last.time).isoformat()} if last else None,
-                      "basis_key": _basis_key(limit, parameter in settings.watched, _restarted_at(session, breaker, parameter))}
+                      "basis_key": _basis_key(limit, parameter in settings.watched, _restarted_at(session, breaker, parameter)),
+                      **({CALIBRATION: cal.to_dict()} if cal is not None else {})}
         row.updated_at = now
         session.add(row)
         progs.append(p)

@@ -47,9 +47,17 @@ from numba import njit
 from service.prognosis.wiener import SIM_DRAWS, mixed_log_density, share_draws, simulation_grid
 
 HAZARD_SCALES = (100.0, 316.0, 1000.0, 3160.0, 10000.0)  # lambda grid [operations]
+# Run lengths below MIN_MASS are pruned (the truncation Adams & MacKay sec. 2.4 discuss): the
+# forecast reads no probability finer than Monte Carlo's 1/SIM_DRAWS = 1e-3, so 1e-6 is far below it.
 MIN_MASS = 1e-6
+# A cost cap, not derived: the recursion carries at most MAX_HYPOTHESES (run length, kind) pairs
+# per fit (its cost O(m x 40)); with a flat and a sloped kind that is 20 run lengths. What the cap
+# drops (the mass beyond the 40 largest) is not measured; issue 55 item 2 leaves it open.
 MAX_HYPOTHESES = 40
-MAX_SEGMENTS = 12  # the forecast's current-segment hypotheses, the most probable
+# Also a cost cap, not derived: the forecast simulates the 12 most probable current segments;
+# each gets at least MIN_SIM_DRAWS = 64 paths, 12 x 64 = 768 of SIM_DRAWS = 1000, so at least a
+# quarter of the paths are still shared by weight.
+MAX_SEGMENTS = 12
 # The change is looked for among the last RECENT fits (and the segments drawn through them): a
 # bounded cost per prognosis however long the basis.
 RECENT = 400

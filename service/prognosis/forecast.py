@@ -37,6 +37,9 @@ from service.alarms.state import DriftState
 from service.breaker_limits import ParameterLimit
 from service.prognosis.averaging import pseudo_bma_plus_weights
 from service.prognosis.bocpd import fit_change_points
+from service.prognosis.calibration import FORECAST_AHEAD, Calibration
+from service.prognosis.calibration import levels as calibrated_levels
+from service.prognosis.calibration import summary as calibration_summary
 from service.prognosis.dates import date_quantiles, recent_gaps
 from service.prognosis.dates import operation_rate as renewal_rate
 from service.prognosis.mixture import Mixture
@@ -97,6 +100,9 @@ class Prognosis:
         from the basis's first fit), and "observed" compensated values of the basis
     status : "ok" | "crossed" (the trend is past the limit now: service is due) | "no trend"
         (reason in ``reason``)
+    forecast : the level's 5/50/95 % quantiles [unit] at ``ahead`` openings from now (compensated):
+        what calibration.issue keeps to score the fits to come
+    calibration : calibration.summary: the probabilities the 5 % and 95 % crossings were read at
     """
 
     parameter: str
@@ -125,6 +131,8 @@ class Prognosis:
     change_before_crossing: float | None = None
     hazard_per_operation: float | None = None
     notes: list = field(default_factory=list)
+    forecast: dict = field(default_factory=dict)
+    calibration: dict = field(default_factory=dict)
 
 
 def compensated(state: DriftState, history: Sequence[FitObservation]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -172,12 +180,14 @@ def basis_start(state: DriftState, m: int) -> tuple[int, str]:
 
 
 def prognose(state: DriftState, history: Sequence[FitObservation], limit: ParameterLimit, *,
-             horizon_years: float = 10.0) -> Prognosis:
+             horizon_years: float = 10.0, calibration: Calibration | None = None) -> Prognosis:
     """The prognosis of ``state.parameter`` against ``limit``.
 
     history : the parameter's good fits since the last baseline reset, oldest first, the same
         the detector was fed (its last one is "now")
     horizon_years : beyond this, at the breaker's own rate, a crossing is reported as None [years]
+    calibration : the breaker's own forecast scores (calibration.py): the crossing's 5 % and 95 %
+        quantiles are read at its corrected probabilities; None: at 5 % and 95 %
     """
     name, text = state.parameter, limit.describe()
     if state.phase != "monitoring" or state.model is None:
@@ -207,7 +217,13 @@ def prognose(state: DriftState, history: Sequence[FitObservation], limit: Parame
                   reference_temperature=model.t_mean, limits=all_limits,
                   paths=_weights_by_label(fit),
                   seasonal=fit.seasonal, low_frequency_sd=fit.low_frequency_sd)
-    ops = [mix.crossing_quantile(bound, direction, p, n_now=n_now, horizon=horizon) for p in QUANTILES]
+    early, late = calibrated_levels(calibration, direction)
+    ops = [mix.crossing_quantile(bound, direction, p, n_now=n_now, horizon=horizon) for p in (early, 0.5, late)]
+    ahead_f = np.array(FORECAST_AHEAD, dtype=float)
+    f_lo, f_med, f_hi = mix.level_quantiles(n_now + ahead_f, QUANTILES)
+    r6 = lambda a: [round(float(v), 6) for v in a]
+    common.update(forecast={"ahead": r6(ahead_f), "median": r6(f_med), "lo": r6(f_lo), "hi": r6(f_hi)},
+                  calibration=calibration_summary(calibration, direction) if calibration is not None else {})
     common.update(change_words(fit, history, bound, direction, model.centre))
     ahead, cdf = mix.crossing_cdf(bound, direction, n_now=n_now, horizon=horizon)
     p_within = float(np.interp(horizon, ahead, cdf))
@@ -217,7 +233,7 @@ def prognose(state: DriftState, history: Sequence[FitObservation], limit: Parame
     dates: list = [None, None, None]
     if rate and whole[0] is not None:
         ahead, cdf = mix.crossing_cdf(bound, direction, n_now=n_now, horizon=horizon)
-        days = date_quantiles(cdf, ahead, recent_gaps(times_days), QUANTILES)
+        days = date_quantiles(cdf, ahead, recent_gaps(times_days), (early, 0.5, late))
         dates = [last_time + timedelta(days=d) if (x is not None and math.isfinite(d)
                                                    and d <= DAYS_PER_YEAR * horizon_years) else None
                  for x, d in zip(whole, days)]
