@@ -70,6 +70,7 @@ def diagnose(captures, breaker: Breaker, operation: str, *, effects=None, seed: 
     dict : the result contract (docs/diagnosis.md).
     """
     t0 = time.perf_counter()
+    clock = StageClock()
     if operation not in ("open", "close"):
         raise DiagnosisError(f"operation must be 'open' or 'close', got {operation!r}")
     unknown = [n for n in (effects or []) if n not in EFFECT_NAMES]
@@ -79,14 +80,14 @@ def diagnose(captures, breaker: Breaker, operation: str, *, effects=None, seed: 
     if not catalogue:
         raise DiagnosisError(f"none of the given effects acts on an {operation} operation")
     windows = prepare(list(captures), breaker, operation, fitter=fitter, seed=seed)
+    clock.lap("prepare")
     try:
         if features_only:
-            t1 = time.perf_counter()
             scores = score(windows, catalogue)
+            clock.lap("evidence")
             return {"features": scores.features, "left_out": list(getattr(windows, "left_out", []) or []),
-                    "stages_s": {"prepare": t1 - t0, "evidence": time.perf_counter() - t1}}
-        return _diagnose(windows, catalogue, strengths, next_measurements, t0, time.perf_counter() - t0,
-                         features)
+                    "stages_s": clock.walls(), "stages": clock.stages}
+        return _diagnose(windows, catalogue, strengths, next_measurements, t0, clock, features)
     except (ArithmeticError, np.linalg.LinAlgError) as exc:
         # a numerical failure (a singular system, an overflow): said in words naming the records
         # and what failed where. Any other error is a fault of the method and is not dressed up
@@ -97,17 +98,41 @@ def diagnose(captures, breaker: Breaker, operation: str, *, effects=None, seed: 
 REFIT_MEMBERS = 3   # the set's members holding effects refitted to say how far the gap shrinks
 
 
-def _diagnose(windows, catalogue, strengths, next_measurements, t0, t_prepare, features=False):
-    t1 = time.perf_counter()
+class StageClock:
+    """Wall, CPU (the process's, both threads) and compiled model integrations
+    (``mechanics.effects.integrator.tally``) per stage of one diagnosis."""
+
+    def __init__(self):
+        self.stages = {}
+        self._mark = self._now()
+
+    @staticmethod
+    def _now():
+        from ..mechanics.effects.integrator import tally
+
+        t = tally()
+        return time.perf_counter(), time.process_time(), t["trajectories"], t["seconds"]
+
+    def lap(self, name: str) -> None:
+        now = self._now()
+        w, c, n, k = (a - b for a, b in zip(now, self._mark))
+        self.stages[name] = {"wall_s": w, "cpu_s": c, "integrations": int(n), "kernel_s": k}
+        self._mark = now
+
+    def walls(self) -> dict:
+        return {k: v["wall_s"] for k, v in self.stages.items()}
+
+
+def _diagnose(windows, catalogue, strengths, next_measurements, t0, clock, features=False):
     scores = score(windows, catalogue)
-    t2 = time.perf_counter()
+    clock.lap("evidence")
     sc = shipped()
     probs = sc.predict_proba(scores.features)
     aset = answer_set(probs, sc.qhat, sc.lam, sc.alpha)
     scores.weights = probs
     members = [k for k in aset.members if k not in ("none", OUTSIDE)][:REFIT_MEMBERS]
     fits = fit_reported(windows, scores, names=members)
-    t3 = time.perf_counter()
+    clock.lap("report_refit")
     ev = evidence(fits, scores)
     dec = decide(fits, ev, aset, catalogue, strengths)
     nm = next_measurement(fits, dec.rivals) if (next_measurements and dec.status == "ambiguous") else []
@@ -115,8 +140,9 @@ def _diagnose(windows, catalogue, strengths, next_measurements, t0, t_prepare, f
     result = build(fits, ev, dec, nm, ho, time.perf_counter() - t0, scores)
     result.update(set_report(aset, fits, scores.features, sc))
     result["message"] = message(result)
-    result["stages_s"] = {"prepare": t_prepare, "evidence": t2 - t1, "report_refit": t3 - t2,
-                          "rest": time.perf_counter() - t3}
+    clock.lap("rest")
+    result["stages_s"] = clock.walls()
+    result["stages"] = clock.stages
     if features:
         result["features"] = scores.features
     return result
