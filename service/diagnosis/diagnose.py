@@ -7,7 +7,9 @@ A one-way pipeline, one module per stage, each taking the last one's result:
    + ``features`` subspace, every pair, a shared discrepancy) scored by leave-one-capture-out
                    predictive density, and every hypothesis's features from it;
 3. ``scorer``      the learnt scorer: every hypothesis's probability from its features;
-4. ``answer_set``  the 90 % set (conformal) and the name (Learn then Test);
+4. ``answer_set``  the 90 % set (conformal) and the name (Learn then Test); ``none`` itself is
+                   decided before the scorer by ``none_test`` (the reduced model's residual
+                   against the noise, a nested F test at a designed false rate);
 5. ``linearised``  the nonlinear refit of the set's members only, to report how far the gap
                    shrinks with each (``evidence``: the noise model's figures);
 6. ``decision``    the status from the set; ``report``: the JSON-ready result (+ ``measurement``:
@@ -22,7 +24,7 @@ import numpy as np
 
 from ..mechanics.breaker import Breaker
 from ..mechanics.effects import EFFECT_NAMES
-from .answer_set import answer_set
+from .answer_set import AnswerSet, answer_set
 from .decision import decide
 from .errors import DiagnosisError
 from .evidence import evidence
@@ -30,6 +32,7 @@ from .hypotheses import catalogue_for
 from .linearised import fit_reported, holdout_shrink
 from .predictive import score
 from .measurement import next_measurement
+from .none_test import none_test
 from .report import build, message, set_report
 from .scorer import OUTSIDE, shipped
 from .windows import prepare
@@ -86,6 +89,7 @@ def diagnose(captures, breaker: Breaker, operation: str, *, effects=None, seed: 
             scores = score(windows, catalogue)
             clock.lap("evidence")
             return {"features": scores.features, "left_out": list(getattr(windows, "left_out", []) or []),
+                    "none_test": none_test(windows).to_dict(),
                     "stages_s": clock.walls(), "stages": clock.stages}
         return _diagnose(windows, catalogue, strengths, next_measurements, t0, clock, features)
     except (ArithmeticError, np.linalg.LinAlgError) as exc:
@@ -123,13 +127,30 @@ class StageClock:
         return {k: v["wall_s"] for k, v in self.stages.items()}
 
 
+def decide_none(nt, probs: dict, sc):
+    """The answer's set with ``none`` decided by the test ``nt`` (``none_test``) before the
+    scorer: consistent with the noise → ``none``, a set of one (the scorer's probabilities kept
+    beside it, for the reader); refused → ``none`` leaves the set, its probability 0, and the
+    others are the scorer's conditioned on "not none" (p / (1 − p_none)), the set built on them."""
+    ranked = dict(sorted(probs.items(), key=lambda kv: (-kv[1], kv[0])))
+    if nt.consistent:
+        return AnswerSet("none", float(probs.get("none", 0.0)), ["none"], 1.0 - sc.alpha, "none", True, ranked,
+                         float(sc.qhat), sc.lam)
+    z = sum(v for k, v in probs.items() if k != "none")
+    rest = {k: (v / z if z > 0 else 0.0) for k, v in probs.items() if k != "none"}
+    aset = answer_set(rest, sc.qhat, sc.lam, sc.alpha)
+    aset.probabilities["none"] = 0.0
+    return aset
+
+
 def _diagnose(windows, catalogue, strengths, next_measurements, t0, clock, features=False):
+    nt = none_test(windows)
     scores = score(windows, catalogue)
     clock.lap("evidence")
     sc = shipped()
     probs = sc.predict_proba(scores.features)
-    aset = answer_set(probs, sc.qhat, sc.lam, sc.alpha)
-    scores.weights = probs
+    aset = decide_none(nt, probs, sc)
+    scores.weights = dict(aset.probabilities)
     members = [k for k in aset.members if k not in ("none", OUTSIDE)][:REFIT_MEMBERS]
     fits = fit_reported(windows, scores, names=members)
     clock.lap("report_refit")
@@ -139,6 +160,7 @@ def _diagnose(windows, catalogue, strengths, next_measurements, t0, clock, featu
     ho = holdout_shrink(windows, fits.hypotheses[dec.hypothesis]) if dec.status == "named" else None
     result = build(fits, ev, dec, nm, ho, time.perf_counter() - t0, scores)
     result.update(set_report(aset, fits, scores.features, sc))
+    result["none_test"] = nt.to_dict()
     result["message"] = message(result)
     clock.lap("rest")
     result["stages_s"] = clock.walls()

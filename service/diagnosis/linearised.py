@@ -228,7 +228,6 @@ def holdout_shrink(windows, h):
 
 
 GN_ITERS = 3          # Gauss–Newton steps of the evidence's joint refits (``exact_fit``)
-REPORT_GN_ITERS = 4   # Gauss–Newton steps of the reported answer's refit (``linearised.refit``)
 REPORT_P = 0.05   # a hypothesis below this predictive weight is neither reported nor a rival worth refitting
 
 
@@ -236,34 +235,35 @@ def fit_reported(windows, scores, rivals: int = 1, names=None):
     """The nonlinear joint refit of what is reported: ``none``, the ``rivals`` most probable
     hypotheses holding catalogued effects (by the predictive weights) and ``outside`` on the
     best of them. The evidence is not taken from these fits (``predictive`` gives it); they say
-    how far the gap shrinks and what the effect does to the parameters."""
+    how far the gap shrinks and what the effect does to the parameters.
+
+    A hypothesis the evidence already refitted exactly (``scores.exact``: Gauss–Newton with each
+    capture's state eliminated, a restart from the design state and a screen from every start)
+    is reported as that fit, not refitted again (issue 54 item 1: the refit was 35-60 % of a
+    diagnosis's integrations and changes no answer, which the scorer gives before it). Any other
+    member is fitted once from its families' local refits, by the same Gauss–Newton."""
     hyps = {"none": none_fit(windows)}
     if names is None:
         names = [k for k, p in scores.ranked() if k not in ("none", "outside_catalogue") and p >= REPORT_P][:rivals]
+    exact = getattr(scores, "exact", {}) or {}
+    refined = getattr(scores, "refined", {}) or {}
     for name in names:
         effects = tuple(name.split("+"))
-        h = getattr(scores, "exact", {}).get(name)
+        h = exact.get(name)
         if h is None:
-            # not refitted by the scoring: from its families' local refits (or their first start)
-            refined = getattr(scores, "refined", {})
-            z0 = []
-            for e in effects:
-                h1 = refined.get(e) or hyps.get(e) or fit_hypothesis(windows, (e,), [family_starts(e)[0]])
-                z0 += [h1.phi[e][0], *h1.phi[e][1]]
-            h = fit_hypothesis(windows, effects, [np.array(z0, float)], refine_nfev=REFINE_NFEV)
-        # the reported answer's refit, polished further: it says how far the gap shrinks and the
-        # fitted strength. An opening in linear algebra (Gauss–Newton, each capture's state
-        # eliminated); a closing by the trust region (its cam makes the state non-smooth)
-        polish = ((lambda hh: refine_exact(windows, hh)) if windows.operation == "close"
-                  else (lambda hh: refit(windows, hh, iters=REPORT_GN_ITERS)))
-        h = polish(h)
-        if len(effects) == 1 and h.chi2 > windows.n + 5.0 * np.sqrt(2.0 * windows.n):
-            # still above the noise: the shape objective is multimodal (a contact touch's fraction
-            # moves a kink): screened again from every start at the states found
-            hb = fit_hypothesis(windows, effects, family_starts(effects[0]), caps=h.captures)
-            if hb.chi2 < h.chi2:
-                h2 = polish(hb)
-                h = min((h, h2), key=lambda x: x.chi2)
+            if len(effects) == 1 and effects[0] in refined:
+                h = refined[effects[0]]
+            else:
+                # from its families' local refits (or their first start)
+                z0 = []
+                for e in effects:
+                    h1 = refined.get(e) or hyps.get(e) or fit_hypothesis(windows, (e,), [family_starts(e)[0]])
+                    z0 += [h1.phi[e][0], *h1.phi[e][1]]
+                h = fit_hypothesis(windows, effects, [np.array(z0, float)], refine_nfev=REFINE_NFEV)
+            # polished at its own states: an opening in linear algebra (Gauss–Newton, each
+            # capture's state eliminated); a closing by the trust region (its cam makes the state
+            # non-smooth)
+            h = refine_exact(windows, h) if windows.operation == "close" else refit(windows, h, iters=GN_ITERS)
         hyps[name] = h
     fits = Fits(windows, hyps)
     cat = [h for h in hyps.values() if h.effects]
