@@ -81,7 +81,7 @@ class Attribution:
         self._orig = integrator._count
         self._mod = integrator
 
-        def count(traj, seconds):
+        def count(traj, seconds, coarse=False):
             f = sys._getframe(2)
             first = None
             while f is not None:
@@ -94,7 +94,7 @@ class Attribution:
                 f = f.f_back
             # on a pool thread the stack ends at the mapped function (its qualified name says whose)
             self.counts[name if f is not None else (first or "(other)")] += traj
-            self._orig(traj, seconds)
+            self._orig(traj, seconds, coarse)
 
         integrator._count = count
 
@@ -136,13 +136,16 @@ def main(argv=None) -> dict:
         st = r.get("stages", {})
         n_int = sum(s["integrations"] for s in st.values())
         k_s = sum(s["kernel_s"] for s in st.values())
+        n_coarse = sum(s.get("coarse_integrations", 0) for s in st.values())
         print(f"{proto.upper()} {label:15s} {sensor:9s} {args.captures} openings: {wall:5.1f} s wall, {cpu:5.1f} s CPU, "
               f"{n_int:5d} integrations ({1e3 * k_s / max(n_int, 1):.2f} ms each, {100 * k_s / max(cpu, 1e-9):.0f} % of CPU)"
               f"  → {r['status']} {r['answer']} p={r['answer_probability']:.2f}   [{up}]")
         for name, s in st.items():
-            print(f"    {name:13s} {s['wall_s']:6.2f} s wall {s['cpu_s']:6.2f} s CPU {s['integrations']:6d} integrations")
+            print(f"    {name:13s} {s['wall_s']:6.2f} s wall {s['cpu_s']:6.2f} s CPU {s['integrations']:6d} integrations "
+                  f"({s.get('coarse_integrations', 0)} on the Jacobians' grid), {s['kernel_s']:5.2f} s in the kernel")
         case = {"prototype": proto, "truth": label, "sensor": sensor, "wall_s": wall, "cpu_s": cpu,
-                "integrations": n_int, "kernel_s": k_s, "uptime": up, "status": r["status"], "answer": r["answer"],
+                "integrations": n_int, "coarse_integrations": n_coarse, "kernel_s": k_s,
+                "probabilities_top": dict(list(r["probabilities"].items())[:5]), "none_test": r.get("none_test"), "uptime": up, "status": r["status"], "answer": r["answer"],
                 "answer_probability": r["answer_probability"], "set": r.get("set"), "stages": st}
         if att:
             case["integrations_by_caller"] = dict(att.counts.most_common())

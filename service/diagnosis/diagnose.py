@@ -99,7 +99,7 @@ def diagnose(captures, breaker: Breaker, operation: str, *, effects=None, seed: 
         raise DiagnosisError(refusal(windows, exc)) from None
 
 
-REFIT_MEMBERS = 3   # the set's members holding effects refitted to say how far the gap shrinks
+REFIT_MEMBERS = 3   # the set's members holding effects reported with a joint refit (how far the gap shrinks)
 
 
 class StageClock:
@@ -115,12 +115,13 @@ class StageClock:
         from ..mechanics.effects.integrator import tally
 
         t = tally()
-        return time.perf_counter(), time.process_time(), t["trajectories"], t["seconds"]
+        return time.perf_counter(), time.process_time(), t["trajectories"], t["seconds"], t["coarse"]
 
     def lap(self, name: str) -> None:
         now = self._now()
-        w, c, n, k = (a - b for a, b in zip(now, self._mark))
-        self.stages[name] = {"wall_s": w, "cpu_s": c, "integrations": int(n), "kernel_s": k}
+        w, c, n, k, g = (a - b for a, b in zip(now, self._mark))
+        self.stages[name] = {"wall_s": w, "cpu_s": c, "integrations": int(n), "coarse_integrations": int(g),
+                             "kernel_s": k}
         self._mark = now
 
     def walls(self) -> dict:
@@ -151,7 +152,13 @@ def _diagnose(windows, catalogue, strengths, next_measurements, t0, clock, featu
     probs = sc.predict_proba(scores.features)
     aset = decide_none(nt, probs, sc)
     scores.weights = dict(aset.probabilities)
-    members = [k for k in aset.members if k not in ("none", OUTSIDE)][:REFIT_MEMBERS]
+    # the report's joint refits: the evidence's exact fits are reused (no integration); a member
+    # the evidence did not refit exactly is fitted only when it is the answer (the report needs
+    # its fit), the others say how far the gap shrinks by the linear fit of their shapes
+    # (``report.set_report``)
+    exact = getattr(scores, "exact", {}) or {}
+    members = [k for k in aset.members if k not in ("none", OUTSIDE)
+               and (k in exact or k == aset.top)][:REFIT_MEMBERS]
     fits = fit_reported(windows, scores, names=members)
     clock.lap("report_refit")
     ev = evidence(fits, scores)

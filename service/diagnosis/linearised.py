@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .data import model_curve
+from .data import curve_step, model_curve, state_columns
 from .parallel import pmap
 from .hypotheses import (
     REFINE_NFEV,
@@ -52,22 +52,20 @@ def _residual(cw, x, op, br, eff):
     return np.where(np.isfinite(r), r, 1e3)
 
 
-def _state_jac(cw, x, op, br, eff, m0):
-    from .windows import JAC_STEP
-
-    w = cw.data.weight
-    cols = []
-    for j in range(x.size):
-        h = 2e-6 if j == x.size - 1 else JAC_STEP * max(abs(x[j]), 1e-6)
-        xp = x.copy()
-        xp[j] += h
-        cols.append((model_curve(xp, cw.data, br, op, eff) - m0) * w / h)
-    J = np.column_stack(cols)
-    return np.where(np.isfinite(J), J, 0.0)
+def _state_jac(cw, x, op, br, eff, m0=None):
+    """The state's whitened columns at ``x`` under ``eff``, on the Jacobians' grid
+    (``data.state_columns``)."""
+    return state_columns(x, cw.data, br, op, eff)
 
 
 def _effect_jac(cw, x, op, br, z, unpack, scale, m0, lo, hi):
+    """Whitened finite-difference columns of the shared effect parameters ``z`` at state ``x``
+    (``m0``: the curve there). On the curve's own grid (``data.curve_step``): a family whose
+    parameters move a kink (the buffer's engagement, a friction's breakaway) changes the
+    discretisation error with them, so its columns need the finer step; a smooth family's
+    curve is on the Jacobians' grid already."""
     w = cw.data.weight
+    dt = curve_step(op, unpack(z))
     cols = []
     for j in range(z.size):
         h = FD_REL * scale[j]
@@ -75,7 +73,7 @@ def _effect_jac(cw, x, op, br, z, unpack, scale, m0, lo, hi):
         if zp[j] + h > hi[j]:
             h = -h
         zp[j] += h
-        cols.append((model_curve(x, cw.data, br, op, unpack(zp)) - m0) * w / h)
+        cols.append((model_curve(x, cw.data, br, op, unpack(zp), dt_max=dt) - m0) * w / h)
     G = np.column_stack(cols)
     return np.where(np.isfinite(G), G, 0.0)
 

@@ -397,13 +397,14 @@ def score(windows: Windows, catalogue) -> Scores:
         h = exact_fit(windows, hyps[k], refined)
         if len(hyps[k]) == 1:
             # a pair must not win on convergence alone: the member is also refitted alone from the
-            # pair's states and parameters, and the better fit kept
+            # states and parameters of the best pair holding it (the one it must be compared
+            # with; the others' starts cost a refit each, issue 54 item 1), and the better fit kept
             e = hyps[k][0]
-            for pk, ph in list(exact.items()):
-                if e in hyps[pk] and len(hyps[pk]) == 2:
-                    alt = member_from_pair(windows, e, ph)
-                    if alt.chi2 < h.chi2:
-                        h = alt
+            pairs = [ph for pk, ph in exact.items() if e in hyps[pk] and len(hyps[pk]) == 2]
+            if pairs:
+                alt = member_from_pair(windows, e, min(pairs, key=lambda ph: ph.chi2))
+                if alt.chi2 < h.chi2:
+                    h = alt
         exact[k] = h
         w2 = Windows(windows.operation, windows.breaker, h.captures)
         caps2 = capture_bases(w2, (), filters=[(c.f, c.ar) for c in caps])
