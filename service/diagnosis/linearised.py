@@ -270,7 +270,7 @@ def fit_reported(windows, scores, rivals: int = 1, names=None):
     return fits
 
 
-def exact_fit(windows, effects: tuple, refined: dict):
+def exact_fit(windows, effects: tuple, refined: dict, restarts: bool = True):
     """The joint refit of a family or pair at its own nuisance profile, in linear algebra
     (``linearised.refit``: Gauss–Newton with each capture's state eliminated), from the local
     refits of its families; a pair starts from its members' parameters, unfitted.
@@ -278,7 +278,9 @@ def exact_fit(windows, effects: tuple, refined: dict):
     A closing keeps the trust-region refit (``exact_fit_trust_region``): the cam's profile makes
     the closing's state non-smooth, and the linear state step overshoots (measured on a contact
     wipe of 3 closings: Gauss–Newton stopped at χ² 22,000 where the trust region reaches 1,100
-    on 1,005 blocks)."""
+    on 1,005 blocks). ``restarts`` False: the Gauss–Newton refit only, without the restart from
+    the design state and the screen from every start (``predictive.score`` keeps those for the
+    leading single)."""
 
     if windows.operation == "close":
         return exact_fit_trust_region(windows, effects, refined)
@@ -300,9 +302,9 @@ def exact_fit(windows, effects: tuple, refined: dict):
         per = [float(np.sum(cw.project_out(cw.r - s) ** 2)) for cw, s in zip(caps, sigs)]
         h0 = HypothesisFit(tuple(effects), phi, sum(1 + len(phi[e][1]) for e in effects), float(sum(per)), per,
                            sigs, captures=list(caps))
-    h = refit(windows, h0, iters=GN_ITERS, design_restart=len(effects) == 1)
+    h = refit(windows, h0, iters=GN_ITERS, design_restart=restarts and len(effects) == 1)
     n = windows.n
-    if len(effects) == 1 and h.chi2 > n + 5.0 * np.sqrt(2.0 * n):
+    if restarts and len(effects) == 1 and h.chi2 > n + 5.0 * np.sqrt(2.0 * n):
         # the shape objective is multimodal (a contact touch's fraction moves a kink): a single
         # still above the noise is screened again from every start at the states it found
         hb = fit_hypothesis(windows, effects, family_starts(effects[0]), caps=h.captures)
