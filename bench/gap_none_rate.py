@@ -43,6 +43,7 @@ def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--groups", type=int, default=150, help="healthy groups per prototype")
     ap.add_argument("--captures", type=int, default=5)
+    ap.add_argument("--sensors", default="clean,realistic")
     ap.add_argument("--out", type=Path, default=ROOT / "bench/results/gap_none_rate.json")
     args = ap.parse_args(argv)
     breaker = load_reference()
@@ -50,7 +51,7 @@ def main(argv=None) -> dict:
     t0 = time.perf_counter()
     rows = []
     for proto in ("a", "b"):
-        for sensor in ("clean", "realistic"):
+        for sensor in args.sensors.split(","):
             for g in range(args.groups):
                 seed = 5400 + 1000 * (proto == "b") + g
                 w = prepare(healthy_group(proto, args.captures, seed, sensor), breaker, "open")
@@ -60,7 +61,7 @@ def main(argv=None) -> dict:
                              "none": nt.consistent})
     out = {"bench": "gap_none_rate", "level": LEVEL, "captures": args.captures, "groups_per_prototype": args.groups,
            "uptime_start": up0, "summary": {}}
-    for sensor in ("clean", "realistic"):
+    for sensor in args.sensors.split(","):
         for proto in ("a", "b", "a+b"):
             sel = [r for r in rows if r["sensor"] == sensor and (proto == "a+b" or r["prototype"] == proto)]
             k = sum(not r["none"] for r in sel)
