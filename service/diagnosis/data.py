@@ -96,10 +96,34 @@ def window_data(capture, fit, breaker: Breaker, operation: str, valid=None) -> W
                       capture.source or "capture")
 
 
+# The coarser RK4 step: one step per block [s], 2.4x less work than the curves' 1/16000 s. The
+# reduced opening and the smooth families (SMOOTH_OPENING) are integrated on it, curves and
+# Jacobian columns alike: their curves move by ≤ 1e-9 rad and their state columns by less than
+# the finite difference's own error (tests/diagnosis/test_jacobian_step.py).
+JAC_DT_S = BLOCK_S
+CURVE_DT_S = 1.0 / 16_000   # the curves' RK4 step [s] (``simulate_effects``' default)
+# Openings whose every effect is one of these are integrated on the Jacobians' grid too: their
+# curves at one step per block differ from those at CURVE_DT_S by ≤ 1e-9 rad over every start
+# of theirs from its own strength to the fits' bounds (the reduced model 3e-11), 20 times under
+# the 1.9e-8 rad that would move χ² by 0.01 on 10⁴ blocks of a 1.5 mrad sensor (2√n·δ/σ_block;
+# tests/diagnosis/test_jacobian_step.py checks the bound). The linkage, the buffer, the rod, the
+# Stribeck friction and the spring stiffening change their curves by 6e-8 to 2e-4 rad there, and
+# every closing by ~2e-5 rad (the cam): they keep the finer step.
+SMOOTH_OPENING = frozenset({"puffer_gas", "viscous_friction", "sensor_nonlinearity"})
+
+
+def curve_step(operation: str, effects=()) -> float:
+    """The RK4 step [s] of a model curve of ``operation`` under ``effects`` (see SMOOTH_OPENING)."""
+    if operation == "open" and all(e[0] in SMOOTH_OPENING for e in effects):
+        return JAC_DT_S
+    return CURVE_DT_S
+
+
 def model_curve(x, data: WindowData, breaker: Breaker, operation: str, effects=(), t=None,
-                sensor_side: bool = False):
+                sensor_side: bool = False, dt_max: float | None = None):
     """Operation coordinate [rad] of the prototype at block centres (or ``t`` [s from the
-    window start]); ``x`` = state parameters followed by the onset delay τ [s]."""
+    window start]); ``x`` = state parameters followed by the onset delay τ [s]; ``dt_max`` the
+    RK4 step [s] (default ``curve_step``; ``JAC_DT_S`` for a Jacobian's columns)."""
     names = STATE[operation]
     params = dict(zip(names, x[: len(names)]))
     co = params.pop("CO", 0.0)
@@ -111,7 +135,9 @@ def model_curve(x, data: WindowData, breaker: Breaker, operation: str, effects=(
         rest = float(breaker.cam.theta2[0])
     else:
         rest = 0.0
-    theta, _ = simulate_effects(operation, params, np.maximum(tt, 0.0), breaker, effects,
+    if dt_max is None:
+        dt_max = curve_step(operation, effects)
+    theta, _ = simulate_effects(operation, params, np.maximum(tt, 0.0), breaker, effects, dt_max=dt_max,
                                 sensor_side=sensor_side, CO=co if co > 0 else None, alpha0=a0)
     return np.where(tt < 0, rest, theta)
 
@@ -121,3 +147,40 @@ def gap_rms(d, count, noise):
     if d.size == 0:
         return 0.0
     return float(np.sqrt(max(np.mean(d * d - noise * noise / count), 0.0)))
+
+
+def state_columns(x, data: WindowData, breaker: Breaker, operation: str, effects=(), steps=None) -> np.ndarray:
+    """Whitened finite-difference columns ∂model/∂x_j · w of the state ``x`` (STATE then τ) under
+    ``effects``, on the curve's grid (``curve_step``: the Jacobians' coarser one for the reduced
+    model and the smooth families; a family with a kink of its own, such as the buffer's free
+    travel, keeps the finer one, since α0 and τ move that kink within a step and the coarse
+    grid's error with it: measured, a Gauss–Newton refit of a buffer then stalled at χ² 2289
+    where the finer columns reach 1857); ``steps`` [x's units] default ``JAC_STEP``·|x_j| (τ:
+    2 µs). Non-finite entries are 0."""
+    from .windows import JAC_STEP
+
+    w = data.weight
+    dt = curve_step(operation, effects)
+    m0 = model_curve(x, data, breaker, operation, effects, dt_max=dt)
+    cols = []
+    for j in range(x.size):
+        h = (2e-6 if j == x.size - 1 else JAC_STEP * max(abs(x[j]), 1e-6)) if steps is None else steps[j]
+        xp = np.array(x, float)
+        xp[j] += h
+        cols.append((model_curve(xp, data, breaker, operation, effects, dt_max=dt) - m0) * w / h)
+    J = np.column_stack(cols)
+    return np.where(np.isfinite(J), J, 0.0)
+
+
+def fd_steps(z, rel: float, lo, hi) -> np.ndarray:
+    """The forward-difference steps scipy's ``least_squares`` takes for ``diff_step=rel``
+    (``rel``·sign·max(1, |z|), turned back where it would leave the bounds): the Jacobians the
+    fits supply on the coarser grid step like the ones scipy computed."""
+    z = np.asarray(z, float)
+    sign = np.where(z >= 0, 1.0, -1.0)
+    h = rel * sign * np.maximum(1.0, np.abs(z))
+    h = (z + h) - z
+    lo, hi = np.broadcast_to(lo, z.shape), np.broadcast_to(hi, z.shape)
+    out = (z + h < lo) | (z + h > hi)
+    fits = np.abs(h) <= np.maximum(z - lo, hi - z)
+    return np.where(out & fits, -h, h)

@@ -28,7 +28,7 @@ from scipy.optimize import least_squares
 
 from ..mechanics.effects import EFFECT_NAMES, OPERATIONS, PHYSICAL_UPPER as FIT_UPPER, REFERENCE_STRENGTHS as REALISTIC
 from ..mechanics.effects import SHAPES, SIGNED, shape_bounds, shape_defaults
-from .data import design_state, model_curve, state_bounds
+from .data import JAC_DT_S, curve_step, design_state, fd_steps, model_curve, state_bounds
 from .parallel import pmap
 from .windows import Windows, linearise, tau_span
 
@@ -159,15 +159,39 @@ def fit_hypothesis(windows: Windows, effects: tuple, starts, *, subset=None,
         eff = _unpack(z, effects, sl)
         return np.concatenate(pmap(lambda cw: cw.project_out(cw.r - signature(cw, op, br, eff)), caps))
 
+    def jac(z):
+        # scipy's forward differences (diff_step 1e-4) of a smooth family's curves, each
+        # capture's columns in one task
+        steps = fd_steps(z, 1e-4, lo, hi)
+
+        def one(cw):
+            w = cw.data.weight
+            mc = model_curve(cw.x, cw.data, br, op, _unpack(z, effects, sl))
+            cols = []
+            for j in range(z.size):
+                zp = np.array(z, float)
+                zp[j] += steps[j]
+                d = (model_curve(cw.x, cw.data, br, op, _unpack(zp, effects, sl)) - mc) * w
+                cols.append(-np.where(np.isfinite(d), d, 0.0) / steps[j])
+            return cw.project_out(np.column_stack(cols))
+
+        return np.vstack(pmap(one, caps))
+
+    # a family that moves a kink keeps scipy's differences of the residual itself (its columns
+    # need the curves' finer grid, ``linearised._effect_jac``)
+    smooth = curve_step(op, [(e, 1.0, None) for e in effects]) == JAC_DT_S
+    jac = jac if smooth else "2-point"
+    fd = {} if smooth else {"diff_step": 1e-4}
+
     best = None
     for z0 in starts:
         z0 = np.clip(np.asarray(z0, float), lo, hi)
-        res = least_squares(fun, z0, bounds=(lo, hi), x_scale=scale, max_nfev=SCREEN_NFEV if len(starts) > 1
-                            else refine_nfev, diff_step=1e-4)
+        res = least_squares(fun, z0, jac=jac, bounds=(lo, hi), x_scale=scale,
+                            max_nfev=SCREEN_NFEV if len(starts) > 1 else refine_nfev, **fd)
         if best is None or res.cost < best.cost - 1e-9 * abs(best.cost):
             best = res
     if len(starts) > 1:
-        best = least_squares(fun, best.x, bounds=(lo, hi), x_scale=scale, max_nfev=refine_nfev, diff_step=1e-4)
+        best = least_squares(fun, best.x, jac=jac, bounds=(lo, hi), x_scale=scale, max_nfev=refine_nfev, **fd)
     eff = _unpack(best.x, effects, sl)
     sigs = pmap(lambda cw: signature(cw, op, br, eff), caps)
     per = [float(np.sum(cw.project_out(cw.r - s) ** 2)) for cw, s in zip(caps, sigs)]

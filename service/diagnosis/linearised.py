@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .data import model_curve
+from .data import curve_step, model_curve, state_columns
 from .parallel import pmap
 from .hypotheses import (
     REFINE_NFEV,
@@ -52,22 +52,20 @@ def _residual(cw, x, op, br, eff):
     return np.where(np.isfinite(r), r, 1e3)
 
 
-def _state_jac(cw, x, op, br, eff, m0):
-    from .windows import JAC_STEP
-
-    w = cw.data.weight
-    cols = []
-    for j in range(x.size):
-        h = 2e-6 if j == x.size - 1 else JAC_STEP * max(abs(x[j]), 1e-6)
-        xp = x.copy()
-        xp[j] += h
-        cols.append((model_curve(xp, cw.data, br, op, eff) - m0) * w / h)
-    J = np.column_stack(cols)
-    return np.where(np.isfinite(J), J, 0.0)
+def _state_jac(cw, x, op, br, eff, m0=None):
+    """The state's whitened columns at ``x`` under ``eff``, on the Jacobians' grid
+    (``data.state_columns``)."""
+    return state_columns(x, cw.data, br, op, eff)
 
 
 def _effect_jac(cw, x, op, br, z, unpack, scale, m0, lo, hi):
+    """Whitened finite-difference columns of the shared effect parameters ``z`` at state ``x``
+    (``m0``: the curve there). On the curve's own grid (``data.curve_step``): a family whose
+    parameters move a kink (the buffer's engagement, a friction's breakaway) changes the
+    discretisation error with them, so its columns need the finer step; a smooth family's
+    curve is on the Jacobians' grid already."""
     w = cw.data.weight
+    dt = curve_step(op, unpack(z))
     cols = []
     for j in range(z.size):
         h = FD_REL * scale[j]
@@ -75,7 +73,7 @@ def _effect_jac(cw, x, op, br, z, unpack, scale, m0, lo, hi):
         if zp[j] + h > hi[j]:
             h = -h
         zp[j] += h
-        cols.append((model_curve(x, cw.data, br, op, unpack(zp)) - m0) * w / h)
+        cols.append((model_curve(x, cw.data, br, op, unpack(zp), dt_max=dt) - m0) * w / h)
     G = np.column_stack(cols)
     return np.where(np.isfinite(G), G, 0.0)
 
@@ -228,7 +226,6 @@ def holdout_shrink(windows, h):
 
 
 GN_ITERS = 3          # Gauss–Newton steps of the evidence's joint refits (``exact_fit``)
-REPORT_GN_ITERS = 4   # Gauss–Newton steps of the reported answer's refit (``linearised.refit``)
 REPORT_P = 0.05   # a hypothesis below this predictive weight is neither reported nor a rival worth refitting
 
 
@@ -236,34 +233,35 @@ def fit_reported(windows, scores, rivals: int = 1, names=None):
     """The nonlinear joint refit of what is reported: ``none``, the ``rivals`` most probable
     hypotheses holding catalogued effects (by the predictive weights) and ``outside`` on the
     best of them. The evidence is not taken from these fits (``predictive`` gives it); they say
-    how far the gap shrinks and what the effect does to the parameters."""
+    how far the gap shrinks and what the effect does to the parameters.
+
+    A hypothesis the evidence already refitted exactly (``scores.exact``: Gauss–Newton with each
+    capture's state eliminated, a restart from the design state and a screen from every start)
+    is reported as that fit, not refitted again (issue 54 item 1: the refit was 35-60 % of a
+    diagnosis's integrations and changes no answer, which the scorer gives before it). Any other
+    member is fitted once from its families' local refits, by the same Gauss–Newton."""
     hyps = {"none": none_fit(windows)}
     if names is None:
         names = [k for k, p in scores.ranked() if k not in ("none", "outside_catalogue") and p >= REPORT_P][:rivals]
+    exact = getattr(scores, "exact", {}) or {}
+    refined = getattr(scores, "refined", {}) or {}
     for name in names:
         effects = tuple(name.split("+"))
-        h = getattr(scores, "exact", {}).get(name)
+        h = exact.get(name)
         if h is None:
-            # not refitted by the scoring: from its families' local refits (or their first start)
-            refined = getattr(scores, "refined", {})
-            z0 = []
-            for e in effects:
-                h1 = refined.get(e) or hyps.get(e) or fit_hypothesis(windows, (e,), [family_starts(e)[0]])
-                z0 += [h1.phi[e][0], *h1.phi[e][1]]
-            h = fit_hypothesis(windows, effects, [np.array(z0, float)], refine_nfev=REFINE_NFEV)
-        # the reported answer's refit, polished further: it says how far the gap shrinks and the
-        # fitted strength. An opening in linear algebra (Gauss–Newton, each capture's state
-        # eliminated); a closing by the trust region (its cam makes the state non-smooth)
-        polish = ((lambda hh: refine_exact(windows, hh)) if windows.operation == "close"
-                  else (lambda hh: refit(windows, hh, iters=REPORT_GN_ITERS)))
-        h = polish(h)
-        if len(effects) == 1 and h.chi2 > windows.n + 5.0 * np.sqrt(2.0 * windows.n):
-            # still above the noise: the shape objective is multimodal (a contact touch's fraction
-            # moves a kink): screened again from every start at the states found
-            hb = fit_hypothesis(windows, effects, family_starts(effects[0]), caps=h.captures)
-            if hb.chi2 < h.chi2:
-                h2 = polish(hb)
-                h = min((h, h2), key=lambda x: x.chi2)
+            if len(effects) == 1 and effects[0] in refined:
+                h = refined[effects[0]]
+            else:
+                # from its families' local refits (or their first start)
+                z0 = []
+                for e in effects:
+                    h1 = refined.get(e) or hyps.get(e) or fit_hypothesis(windows, (e,), [family_starts(e)[0]])
+                    z0 += [h1.phi[e][0], *h1.phi[e][1]]
+                h = fit_hypothesis(windows, effects, [np.array(z0, float)], refine_nfev=REFINE_NFEV)
+            # polished at its own states: an opening in linear algebra (Gauss–Newton, each
+            # capture's state eliminated); a closing by the trust region (its cam makes the state
+            # non-smooth)
+            h = refine_exact(windows, h) if windows.operation == "close" else refit(windows, h, iters=GN_ITERS)
         hyps[name] = h
     fits = Fits(windows, hyps)
     cat = [h for h in hyps.values() if h.effects]
@@ -272,7 +270,7 @@ def fit_reported(windows, scores, rivals: int = 1, names=None):
     return fits
 
 
-def exact_fit(windows, effects: tuple, refined: dict):
+def exact_fit(windows, effects: tuple, refined: dict, restarts: bool = True):
     """The joint refit of a family or pair at its own nuisance profile, in linear algebra
     (``linearised.refit``: Gauss–Newton with each capture's state eliminated), from the local
     refits of its families; a pair starts from its members' parameters, unfitted.
@@ -280,7 +278,9 @@ def exact_fit(windows, effects: tuple, refined: dict):
     A closing keeps the trust-region refit (``exact_fit_trust_region``): the cam's profile makes
     the closing's state non-smooth, and the linear state step overshoots (measured on a contact
     wipe of 3 closings: Gauss–Newton stopped at χ² 22,000 where the trust region reaches 1,100
-    on 1,005 blocks)."""
+    on 1,005 blocks). ``restarts`` False: the Gauss–Newton refit only, without the restart from
+    the design state and the screen from every start (``predictive.score`` keeps those for the
+    leading single)."""
 
     if windows.operation == "close":
         return exact_fit_trust_region(windows, effects, refined)
@@ -302,9 +302,9 @@ def exact_fit(windows, effects: tuple, refined: dict):
         per = [float(np.sum(cw.project_out(cw.r - s) ** 2)) for cw, s in zip(caps, sigs)]
         h0 = HypothesisFit(tuple(effects), phi, sum(1 + len(phi[e][1]) for e in effects), float(sum(per)), per,
                            sigs, captures=list(caps))
-    h = refit(windows, h0, iters=GN_ITERS, design_restart=len(effects) == 1)
+    h = refit(windows, h0, iters=GN_ITERS, design_restart=restarts and len(effects) == 1)
     n = windows.n
-    if len(effects) == 1 and h.chi2 > n + 5.0 * np.sqrt(2.0 * n):
+    if restarts and len(effects) == 1 and h.chi2 > n + 5.0 * np.sqrt(2.0 * n):
         # the shape objective is multimodal (a contact touch's fraction moves a kink): a single
         # still above the noise is screened again from every start at the states it found
         hb = fit_hypothesis(windows, effects, family_starts(effects[0]), caps=h.captures)

@@ -1,8 +1,8 @@
 """Both cores for the diagnosis (issue 48 item 4): a map over the captures in threads.
 
-The time of a diagnosis is ~95 % the compiled RK4 of the model curve
-(``mechanics.effects.dynamics.integrate_rk4``, ~0.7 ms a call, thousands of calls), compiled
-with ``nogil=True``: two threads run two captures' curves at once, with no copy of the
+The time of a diagnosis is 70-95 % the compiled RK4 of the model curve
+(``mechanics.effects.dynamics.integrate_rk4``, 0.3-0.9 ms a call, thousands of calls: the
+tally in ``mechanics.effects.integrator`` counts them), compiled with ``nogil=True``: two threads run two captures' curves at once, with no copy of the
 captures (a process pool would pickle each capture's window and Jacobians per task). The work
 of one capture (its signatures, its Jacobian columns, its residual) is one task, so the order
 of the results, and with it every sum, is the serial one: the answer does not depend on the

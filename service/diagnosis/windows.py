@@ -32,8 +32,10 @@ from .data import (
     STATE,
     WindowData,
     design_state,
+    fd_steps,
     model_curve,
     state_bounds,
+    state_columns,
     window_data,
 )
 from .errors import DiagnosisError
@@ -234,14 +236,7 @@ def linearise(x, data: WindowData, breaker: Breaker, operation: str) -> CaptureW
     w = data.weight
     m0 = model_curve(x, data, breaker, operation)
     r = (data.y - m0) * w
-    cols = []
-    for j in range(x.size):
-        h = 2e-6 if j == x.size - 1 else JAC_STEP * max(abs(x[j]), 1e-6)
-        xp = x.copy()
-        xp[j] += h
-        cols.append((model_curve(xp, data, breaker, operation) - m0) * w / h)
-    J = np.column_stack(cols)
-    J = np.where(np.isfinite(J), J, 0.0)
+    J = state_columns(x, data, breaker, operation)
     S = sensor_columns(x, data, breaker, operation, m0)
     # orthonormal basis of what the nuisance can move (the state, τ and the sensor); a direction
     # the data cannot see (a damping that acts nowhere in this window) is dropped rather than
@@ -290,8 +285,10 @@ def fit_reduced(x0, data, breaker, operation, max_nfev=BASE_NFEV):
     lo, hi = _bounds(x0, operation)
     scale = np.maximum(np.abs(x0), 1e-6)
     scale[-1] = 1e-4
-    res = least_squares(lambda x: _residual(x, data, breaker, operation), np.clip(x0, lo, hi),
-                        bounds=(lo, hi), x_scale=scale, max_nfev=max_nfev, diff_step=1e-6)
+    # scipy's forward differences (diff_step 1e-6), the columns on the Jacobians' grid
+    jac = lambda x: -state_columns(x, data, breaker, operation, steps=fd_steps(x, 1e-6, lo, hi))
+    res = least_squares(lambda x: _residual(x, data, breaker, operation), np.clip(x0, lo, hi), jac=jac,
+                        bounds=(lo, hi), x_scale=scale, max_nfev=max_nfev)
     return res.x, float(np.sum(res.fun ** 2))
 
 

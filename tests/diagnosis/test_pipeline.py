@@ -72,9 +72,9 @@ def test_contact_wipe_named_jointly(wipe):
     assert touch["gap_after"] < touch["gap_before"]
 
 
-@pytest.mark.xfail(strict=True, reason="issue 36: with the cam keying in the closing's nuisance state the "
-                   "exact refit of the wipe stops at strength 0.46 (χ² 1097 on 1005 blocks, the truth's ~1013): "
-                   "32 % off the generator's 0.35, outside its stated interval; not solved this round")
+@pytest.mark.xfail(strict=True, reason="issue 36/54: the exact refit of the wipe is path-dependent: 0.46 on the former "
+                   "code (chi2 1097 on 1005 blocks, the truth's ~1013), 0.28 with the evidence's fit reused by the report "
+                   "(issue 54): 20-32 % off the generator's 0.35, outside its stated interval; not solved this round")
 def test_contact_wipe_strength(wipe):
     """The wipe's fitted strength near the generator's 0.35 (within 5 %: the unit's ±3 %
     tolerances trade against the strength) and inside its stated 95 % interval."""
@@ -85,11 +85,11 @@ def test_contact_wipe_strength(wipe):
 
 
 def test_healthy_group_is_none(healthy):
-    """``none`` is the most probable answer and in the set, and no effect is named (a set of one
-    is stated only past Learn then Test's threshold: ``none`` then, or ambiguous)."""
-    assert healthy["answer"] == "none" and "none" in healthy["set"]
-    assert healthy["effects"] == [] and healthy["status"] in ("none", "ambiguous")
-    assert healthy["probabilities"]["none"] == max(healthy["probabilities"].values())
+    """A healthy group is ``none``: decided by the test of the reduced model's residual against
+    the noise (``none_test``), before any scorer; the set is ``none`` alone."""
+    assert healthy["status"] == "none" and healthy["answer"] == "none"
+    assert healthy["effects"] == [] and healthy["set"] == ["none"]
+    assert healthy["none_test"]["none"] and healthy["none_test"]["p_value"] >= healthy["none_test"]["level"]
 
 
 def test_bad_input_in_words(breaker):
@@ -106,9 +106,9 @@ def test_bad_input_in_words(breaker):
         diagnose([half], breaker, "open")
 
 
-def test_a_5ks_analyser_record_is_diagnosed(tmp_path):
-    """Blocks are a time (125 µs), not 16 samples: an opening of a 5 kS/s close-open analyser
-    record (the reduced model's curve, no effect) is diagnosed, not refused for its length."""
+@pytest.fixture(scope="module")
+def analyser_5ks(tmp_path_factory):
+    """Four openings of 5 kS/s close-open analyser records (the reduced model's curve, no effect)."""
     from drivers.capture_file import read_capture
     from service.acquisition.capture_file import breaker_reading
     from service.breaker_file import load_breaker
@@ -118,15 +118,28 @@ def test_a_5ks_analyser_record_is_diagnosed(tmp_path):
     from service.estimation.record import operation_capture
 
     b = load_breaker(REPO / "config/breakers/generic-analyser.toml")
+    tmp_path = tmp_path_factory.mktemp("analyser")
     caps = []
     for seed in (1, 2, 3, 4):       # four records of one breaker (one record alone is weak evidence)
         path = tmp_path / f"rec{seed}.csv"
         write_export(path, Spec(rate=5_000, seed=seed))
         caps.append(operation_capture(read_capture(path, **breaker_reading(b)), b, "open")[0])
-    r = diagnose(caps, b, "open", next_measurements=False)
+    return diagnose(caps, b, "open", next_measurements=False)
+
+
+def test_a_5ks_analyser_record_is_diagnosed(analyser_5ks):
+    """Blocks are a time (125 µs), not 16 samples: an opening of a 5 kS/s close-open analyser
+    record is diagnosed, not refused for its length, and found healthy."""
+    r = analyser_5ks
     assert r["noise_model"]["samples_per_block"] == 1.0
     assert r["blocks"] > 4 * 100
-    assert r["answer"] == "none" and "none" in r["set"] and r["effects"] == []
+    assert r["status"] == "none" and r["answer"] == "none" and r["effects"] == []
+
+
+@pytest.mark.xfail(strict=True, reason="issue 54: none is decided by the none test (p-value, not a probability); "
+                   "the answer's probability shown is the shipped scorer's P(none), 0.45 on these records")
+def test_a_5ks_analyser_record_none_is_stated_at_090(analyser_5ks):
+    assert analyser_5ks["answer_probability"] >= 0.9
 
 
 def test_a_gap_of_twice_the_noise_is_never_none(breaker):
@@ -143,6 +156,5 @@ def test_a_gap_of_twice_the_noise_is_never_none(breaker):
     r = diagnose(caps, breaker, "open", next_measurements=False)
     assert r["gap"]["before_rms_rad"] >= 1.0 * r["gap"]["noise_rad"]
     assert r["status"] != "none" and r["answer"] != "none"
-    # the scorer's probabilities are not the former evidence's (whose bound here was 0.01): none is
-    # not the most probable and is less than a tenth of the answer's
-    assert r["probabilities"]["none"] <= 0.1 * r["answer_probability"]
+    assert r["probabilities"]["none"] <= 0.01
+    assert not r["none_test"]["none"]

@@ -3,13 +3,16 @@
 import time
 
 import numpy as np
+import pytest
 
 from comtrade_bytes import comtrade_pair
 from drivers.synthetic import synthesize_capture
 from service.prototypes.a import Effects, make_prototype_simulator
 
 
-def test_diagnosis_is_queued_then_served(env, breaker):
+def _served(env, breaker):
+    """A closing with a contact wipe posted, its diagnosis queued, polled until served: (the
+    served body, the operation id)."""
     sim = make_prototype_simulator(breaker, Effects(contact_wipe=0.45), "close", method="fast")
     cap, _ = synthesize_capture(breaker, "close", breaker.design_parameters(), rng=np.random.default_rng(31),
                                 simulate=sim)
@@ -29,11 +32,20 @@ def test_diagnosis_is_queued_then_served(env, breaker):
             break
         assert body.status_code == 202 and time.monotonic() < deadline, body.text
         time.sleep(0.5)
-    out = body.json()
+    return body.json(), op
+
+
+def test_diagnosis_is_queued_then_served(env, breaker):
+    out, op = _served(env, breaker)
     assert out["status"] == "done", out
     result = out["result"]
     assert {"gap", "candidates", "verdict"} <= set(result)
-    # the answer is the 90 % set (issue 48): the wipe is in it; a name only past Learn then Test
-    assert any("contact_wipe" in k.split("+") for k in result["set"])
-    assert result["verdict"] in ("contact_wipe", "ambiguous")
+    assert any("contact_wipe" in k.split("+") for k in result["set"])      # the wipe is in the 90 % set
     assert env.client.get(f"/api/v1/operations/{op + 1000}/diagnosis", headers=env.h("reader")).status_code == 404
+
+
+@pytest.mark.xfail(strict=True, reason="issue 54: the shipped scorer does not name the wipe of this one closing "
+                   "(verdict 'ambiguous'); the none test refuses none here but names nothing")
+def test_the_served_diagnosis_names_the_wipe(env, breaker):
+    out, _ = _served(env, breaker)
+    assert out["result"]["verdict"] == "contact_wipe"

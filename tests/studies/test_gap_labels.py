@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from service.studies.gap.labels import bow_delta_chi2, label
+from service.studies.gap.labels import bow_delta_chi2, label, threshold
 
 
 def _row(truth=(), outside=False, delta=0.0, twin=None, bow=None, failed=()):
@@ -25,6 +25,23 @@ def test_labels_follow_the_oracle():
     # a failed oracle fit: no label, with the reason
     lab, why = label(_row(["orifice_buffer"], delta=1e9, failed=[2]))
     assert lab is None and "failed" in why
+
+
+def test_the_threshold_is_the_none_tests_half_power_noncentrality_and_grows_with_the_group():
+    from scipy.stats import chi2, ncx2
+
+    from service.diagnosis.none_test import LEVEL
+
+    small, _ = threshold({"none_test": {"df_gap": 90}})
+    large, why = threshold({"none_test": {"df_gap": 150}})
+    assert small < large < 100.0 and "df 150" in why
+    assert ncx2.sf(chi2.isf(LEVEL, 150), 150, large) == pytest.approx(0.5, abs=1e-6)
+    legacy, why = threshold({})
+    assert legacy == 100.0 and "former" in why
+    # a row with the test's df: a gap of 60 is detectable on 5 captures (df 150), not on a fixed 100
+    row = _row(["orifice_buffer"], delta=60.0)
+    assert label(row)[0] == "none"
+    assert label(dict(row, none_test={"df_gap": 150}))[0] == "orifice_buffer"
 
 
 def test_a_detectable_sensor_bow_is_part_of_the_truth():

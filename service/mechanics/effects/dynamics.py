@@ -50,6 +50,14 @@ def _gas(theta, omega, e, BO, stroke):
 @njit(cache=True)
 def opening_rhs(x, p, e, c):
     """d/dt of the opening state; p = [AO, BO, DO, EO], e = strengths, c = constants."""
+    dx = np.empty(4)
+    _opening_into(x, p, e, c, dx)
+    return dx
+
+
+@njit(cache=True)
+def _opening_into(x, p, e, c, dx):
+    """``opening_rhs`` written into ``dx`` (no allocation: the RK4 calls it ~10⁴ times a curve)."""
     AO, BO, DO, EO = p[0], p[1], p[2], p[3]
     CO, alpha0, X1, stroke = c[0], c[1], c[2], c[3]
     th, om, ph, vp = x[0], x[1], x[2], x[3]
@@ -61,7 +69,6 @@ def opening_rhs(x, p, e, c):
         q -= DO * om + EO * (th - alpha0) + orifice_torque(th, om, e[ORIFICE], DO, alpha0, stroke,
                                                            _sh(e, ORIFICE, 0), _sh(e, ORIFICE, 1),
                                                            _sh(e, ORIFICE, 2))
-    dx = np.empty(4)
     if e[ROD] > 0.0:
         K, C = rod_coefficients(e[ROD], _sh(e, ROD, 0))
         f = K * (th - ph) + C * (om - vp)
@@ -84,12 +91,19 @@ def opening_rhs(x, p, e, c):
         dx[1] = acc
         dx[2] = dg
         dx[3] = acc
-    return dx
 
 
 @njit(cache=True)
 def closing_rhs(x, p, e, c, cx, cy, cc):
     """d/dt of the closing state; p = [AC, BC, CC, DC]; cx, cy, cc: the cam spline."""
+    dx = np.empty(4)
+    _closing_into(x, p, e, c, cx, cy, cc, dx)
+    return dx
+
+
+@njit(cache=True)
+def _closing_into(x, p, e, c, cx, cy, cc, dx):
+    """``closing_rhs`` written into ``dx``."""
     AC, BC, CC, DC = p[0], p[1], p[2], p[3]
     xC0, rC, d, CO, g_start = c[0], c[1], c[2], c[4], c[5]
     tt, te, tm = c[6], c[7], c[8]
@@ -110,7 +124,6 @@ def closing_rhs(x, p, e, c, cx, cy, cc):
         load += share * e[SPRING] * DC * te * max(u, 0.0) ** _sh(e, SPRING, 0)
     if e[WIPE] > 0.0:
         tt = h0 + _sh(e, WIPE, 0) * (te - h0)
-    dx = np.empty(4)
     if e[ROD] > 0.0:
         K, C = rod_coefficients(e[ROD], _sh(e, ROD, 0))
         mu = MASS_FRACTION
@@ -128,7 +141,6 @@ def closing_rhs(x, p, e, c, cx, cy, cc):
         dx[1] = acc1
         dx[2] = om2
         dx[3] = h1 * acc1 + h2 * om1 * om1
-    return dx
 
 
 @njit(cache=True)
@@ -138,13 +150,39 @@ def _rhs(op, x, p, e, c, cx, cy, cc):
     return closing_rhs(x, p, e, c, cx, cy, cc)
 
 
+@njit(cache=True, inline="always")
+def _rhs_into(op, x, p, e, c, cx, cy, cc, dx):
+    if op == 0:
+        _opening_into(x, p, e, c, dx)
+    else:
+        _closing_into(x, p, e, c, cx, cy, cc, dx)
+
+
 @njit(cache=True)
 def _rk4_step(op, x, hs, p, e, c, cx, cy, cc):
-    k1 = _rhs(op, x, p, e, c, cx, cy, cc)
-    k2 = _rhs(op, x + 0.5 * hs * k1, p, e, c, cx, cy, cc)
-    k3 = _rhs(op, x + 0.5 * hs * k2, p, e, c, cx, cy, cc)
-    k4 = _rhs(op, x + hs * k3, p, e, c, cx, cy, cc)
-    return x + hs * (k1 + 2.0 * k2 + 2.0 * k3 + k4) / 6.0
+    out = np.empty(4)
+    w = np.empty((5, 4))
+    _rk4_into(op, x, hs, p, e, c, cx, cy, cc, out, w)
+    return out
+
+
+@njit(cache=True)
+def _rk4_into(op, x, hs, p, e, c, cx, cy, cc, out, w):
+    """One RK4 step from ``x`` written into ``out``; ``w`` (5 × 4) the stages' work space. The
+    same arithmetic, in the same order, as the array form x + hs·(k1 + 2k2 + 2k3 + k4)/6."""
+    k1, k2, k3, k4, xt = w[0], w[1], w[2], w[3], w[4]
+    _rhs_into(op, x, p, e, c, cx, cy, cc, k1)
+    for i in range(4):
+        xt[i] = x[i] + 0.5 * hs * k1[i]
+    _rhs_into(op, xt, p, e, c, cx, cy, cc, k2)
+    for i in range(4):
+        xt[i] = x[i] + 0.5 * hs * k2[i]
+    _rhs_into(op, xt, p, e, c, cx, cy, cc, k3)
+    for i in range(4):
+        xt[i] = x[i] + hs * k3[i]
+    _rhs_into(op, xt, p, e, c, cx, cy, cc, k4)
+    for i in range(4):
+        out[i] = x[i] + hs * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]) / 6.0
 
 
 @njit(cache=True, nogil=True)
@@ -160,6 +198,9 @@ def integrate_rk4(op, x0, p, e, c, cx, cy, cc, t, dt_max):
     omega = np.empty(m)
     ev = np.array([np.nan, np.nan, 0.0])
     x = x0.copy()
+    xn = np.empty(4)
+    xm = np.empty(4)
+    w = np.empty((5, 4))
     tc = 0.0
     alpha = c[1] if op == 0 else c[6]
     rise_end = c[9] if op == 1 else 0.0
@@ -169,19 +210,19 @@ def integrate_rk4(op, x0, p, e, c, cx, cy, cc, t, dt_max):
             nsub = max(int(math.ceil((tj - tc) / dt_max - 1e-9)), 1)  # a sub-ulp gap is one tiny step
             hs = (tj - tc) / nsub
             for _ in range(nsub):
-                xn = _rk4_step(op, x, hs, p, e, c, cx, cy, cc)
+                _rk4_into(op, x, hs, p, e, c, cx, cy, cc, xn, w)
                 # Restart the step at a switch of the equations (buffer engagement, contact
                 # touch) so that no RK4 step straddles a jump in the acceleration.
                 sw = 0 if op == 0 else 2
                 if x[sw] <= alpha < xn[sw]:
                     h1s = hs * (alpha - x[sw]) / (xn[sw] - x[sw])
                     for _it in range(2):
-                        xm = _rk4_step(op, x, h1s, p, e, c, cx, cy, cc)
+                        _rk4_into(op, x, h1s, p, e, c, cx, cy, cc, xm, w)
                         v = (xm[sw + 1] if xm[sw + 1] > 0.0 else 1.0)
                         h1s = min(max(h1s - (xm[sw] - alpha) / v, 0.0), hs)
-                    xm = _rk4_step(op, x, h1s, p, e, c, cx, cy, cc)
+                    _rk4_into(op, x, h1s, p, e, c, cx, cy, cc, xm, w)
                     xm[sw] = max(xm[sw], alpha * (1.0 + 1e-15) + 1e-300)
-                    xn = _rk4_step(op, xm, hs - h1s, p, e, c, cx, cy, cc)
+                    _rk4_into(op, xm, hs - h1s, p, e, c, cx, cy, cc, xn, w)
                 if op == 0:
                     if math.isnan(ev[0]) and x[0] <= alpha < xn[0]:
                         ev[0] = tc + hs * (alpha - x[0]) / (xn[0] - x[0])
@@ -194,7 +235,7 @@ def integrate_rk4(op, x0, p, e, c, cx, cy, cc, t, dt_max):
                         ev[1] = tc + hs * (rise_end - x[0]) / (xn[0] - x[0])
                     if math.isnan(ev[1]) and xn[1] <= 0.0:
                         ev[2] = 1.0
-                x = xn
+                x, xn = xn, x      # swap the buffers: xn is written afresh by the next step
                 tc += hs
             tc = tj
         side = _sh(e, ROD, 1) if e[ROD] > 0.0 else 0.0  # sensor on the contact side of the rod

@@ -106,6 +106,7 @@ def diagnose_job(task) -> dict:
         row.update({k: r[k] for k in KEEP if k in r})
         row["holdout_shrink"] = r.get("holdout_shrink")
         row["features"] = r.get("features")
+        row["none_test"] = r.get("none_test")      # its df sets the row's detectability threshold (labels)
     row["diagnose_s"] = time.perf_counter() - t0
     return row
 

@@ -31,7 +31,7 @@ import math
 import numpy as np
 from scipy.stats import binom
 
-DETECTABLE = 100.0
+DETECTABLE = 100.0                # the former fixed threshold; a row's own is ``labels.threshold``
 MATERIAL = 0.5                    # an effect explaining less than half of the gap is never named
 MARGINS = (0.99, 0.95, 0.9, 0.8, 0.7, 0.6, 0.5, 0.4, 0.3, 0.2, 0.1, 0.05, 0.0)
 SHARES = (0.9, 0.8, 0.7, 0.6, 0.5)
@@ -40,7 +40,9 @@ SHARES = (0.9, 0.8, 0.7, 0.6, 0.5)
 def true_label(row: dict) -> str:
     """The label a group should get (module docstring)."""
     truth = sorted(row.get("truth") or [])
-    detectable = float((row.get("oracle") or {}).get("delta_chi2", 0.0) or 0.0) >= DETECTABLE
+    from .labels import threshold
+
+    detectable = float((row.get("oracle") or {}).get("delta_chi2", 0.0) or 0.0) >= threshold(row)[0]
     if row.get("outside"):
         return "unexplained" if detectable else "none"
     if not truth:
@@ -177,8 +179,11 @@ def figures(answers) -> dict:
         sel = [a for a in answers if among(a)]
         return (sum(1 for a in sel if pred(a)), len(sel))
 
+    from .labels import threshold
+
     def detectable(a):
-        return float((a[0].get("oracle") or {}).get("delta_chi2", 0.0) or 0.0) >= DETECTABLE and a[2] != "none"
+        return (float((a[0].get("oracle") or {}).get("delta_chi2", 0.0) or 0.0) >= threshold(a[0])[0]
+                and a[2] != "none")
 
     sizes = [len(a[1]["set"]) for a in answers if detectable(a)]
     return {
