@@ -142,6 +142,7 @@ def _history(session, breaker: BreakerRow, parameter: str):
 
 def breaker_prognoses(session, *, breaker: BreakerRow, settings, horizon_years: float = 10.0) -> list:
     """``service.prognosis.Prognosis`` of each limited parameter, soonest median first."""
+    settings = settings.for_breaker(breaker.name)  # its [alarms.breakers.NAME] overrides
     out = [parameter_prognosis(session, breaker=breaker, parameter=parameter, limit=limit, settings=settings,
                                horizon_years=horizon_years)[0]
            for parameter, limit in limits_of(breaker).items()]
@@ -263,6 +264,7 @@ def store_prognoses(session, *, breaker_id: int, settings, force: frozenset | se
     last one into each parameter's calibration (cheap: ``stored_calibration``). Returns those
     recomputed."""
     breaker = session.get(BreakerRow, breaker_id)
+    settings = settings.for_breaker(breaker.name)  # its [alarms.breakers.NAME] overrides
     now = utcnow()
     stored = {r.parameter: r for r in session.scalars(select(PrognosisRow).where(PrognosisRow.breaker_id == breaker_id))}
     progs = []

@@ -14,8 +14,9 @@ from service.display import parameter_label
 from service.findings import action
 from service.mechanics.nomenclature import UNITS
 
-# Fitted opening parameters come from openings, closing ones from closings.
-OPENING = {"AO", "BO", "DO", "EO"}
+# Fitted opening parameters and the opening's vibration readings (the trip latch's time, the
+# buffer's ratio: service.storage.crud_vibration.WATCHABLE) come from openings, closing ones from closings.
+OPENING = {"AO", "BO", "DO", "EO", "latch_time_s", "buffer_ratio"}
 
 
 def name(parameter: str) -> str:

@@ -58,3 +58,11 @@ def test_a_median_beyond_the_horizon_keeps_the_earliest_crossing():
     assert text.startswith("Buffer damping (DO): not expected to reach its limit within 10 years at this rate.")
     assert text.endswith("At the earliest (5 %): in 2,900 openings, 2033-06-01."), text
     assert words.fleet_text(p) == "buffer damping (DO): not within 10 years"
+
+
+def test_the_latch_is_counted_in_openings_as_it_is_read_from_them():
+    from service.prognosis import words
+
+    assert words.operations(12, "latch_time_s") == "12 openings"
+    assert words.operations(1, "buffer_ratio") == "1 opening"
+    assert words.operations(3, "AC") == "3 closings"
