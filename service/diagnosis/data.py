@@ -17,6 +17,7 @@ from ..mechanics.effects import simulate_effects
 # under the ~1 ms the shortest effect (a latch ramp, a contact touch) lasts, so averaging within a
 # block loses nothing the catalogue or the discrepancy term resolves.
 BLOCK_S = 1.0 / 8_000    # [s]
+JAC_STEP = 1e-4     # relative finite-difference step of the state Jacobian
 
 # A capture's own state: the reduced parameters it estimates plus, for an opening, CO [s^-1], the
 # linear damping that grease and puffer gas change with the temperature from one operation to the
@@ -157,8 +158,6 @@ def state_columns(x, data: WindowData, breaker: Breaker, operation: str, effects
     grid's error with it: measured, a Gauss–Newton refit of a buffer then stalled at χ² 2289
     where the finer columns reach 1857); ``steps`` [x's units] default ``JAC_STEP``·|x_j| (τ:
     2 µs). Non-finite entries are 0."""
-    from .windows import JAC_STEP
-
     w = data.weight
     dt = curve_step(operation, effects)
     m0 = model_curve(x, data, breaker, operation, effects, dt_max=dt)

@@ -48,7 +48,6 @@ BASE_NFEV = 30      # polish of the reduced model (least_squares evaluations)
 TAU_SPAN = (-2e-3, 5e-3)
 GAP_P = 1e-3        # a baseline whose χ² is this improbable is also polished from the design state
 MIN_BLOCKS = 20     # 2.5 ms of blocks: fewer cannot hold a state of 5-6 parameters and a test
-JAC_STEP = 1e-4     # relative finite-difference step of the state Jacobian
 # A capture whose reduced fit leaves more than this mean χ² per block (≈ 32 times the noise per
 # block, rms) has a fit that did not converge (a wrong basin, a record the reduced model cannot
 # start from): no catalogued effect comes near it (the strongest at realistic strength leave

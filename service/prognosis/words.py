@@ -29,6 +29,8 @@ def value(x: float, parameter: str) -> str:
     unit = UNITS.get(parameter, "")
     if not math.isfinite(x):
         return "–"
+    if unit == "s":  # a time (the trip latch's) reads in ms, as on the alarm pages
+        x, unit = x * 1e3, "ms"
     digits = 0 if abs(x) >= 1000 or x == 0 else max(0, 2 - int(math.floor(math.log10(abs(x)))))
     text = f"{x:,.{digits}f}".replace("-", "−")
     return f"{text} {unit}".strip() if unit not in ("", "–", "1") else text

@@ -18,7 +18,7 @@ from service.diagnosis.data import (
     state_columns,
 )
 from service.diagnosis.hypotheses import family_starts
-from service.diagnosis.windows import JAC_STEP
+from service.diagnosis.data import JAC_STEP
 from service.mechanics.effects import EFFECT_NAMES, OPERATIONS
 
 

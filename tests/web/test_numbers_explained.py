@@ -148,7 +148,7 @@ def test_operation_page_rows_have_units(demo, browser):
                 assert cells[-1] and not NUMBER.fullmatch(cells[-1]), f"no unit in the last column: {cells}"
 
 
-PROGNOSIS_UNIT = re.compile(r"\s?(?:s⁻²|s⁻¹|%|openings?|closings?|years|fits)")
+PROGNOSIS_UNIT = re.compile(r"\s?(?:s⁻²|s⁻¹|ms|%|openings?|closings?|years|fits)")  # ms: the latch time
 DATE = re.compile(r"\b\d{4}-\d\d-\d\d\b")
 
 
