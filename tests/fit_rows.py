@@ -8,6 +8,18 @@ from datetime import datetime, timedelta
 import numpy as np
 
 
+def store_fit(s, *, key: str, breaker_id: int, occurred_at: datetime, result: dict, kind: str = "open"):
+    """One operation and its done fit, written straight into the tables (no capture file)."""
+    from service.storage import crud
+
+    op, _ = crud.create_operation(s, capture_key=key, breaker_id=breaker_id, kind=kind, occurred_at=occurred_at,
+                                  source="replay", capture_path="/nonexistent.csv", capture_sha256="0" * 64,
+                                  flags=[], sample_rate=1.0, n_samples=1)
+    crud.claim_fit(s, operation_id=op.id, worker="test")
+    crud.store_fit_result(s, operation_id=op.id, curve=None, result=result)
+    return op
+
+
 def store_leak(Session, settings, *, t0: datetime, step: timedelta, n: int = 32, start: int = 25,
                breaker_id: int = 1, key: str = "leak") -> list:
     """Openings 0..n-1 of breaker ``breaker_id`` every ``step`` from ``t0``: DO 39.5 s^-1 with a

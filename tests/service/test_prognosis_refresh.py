@@ -10,8 +10,8 @@ from sqlalchemy import select
 
 from service.jobs import prognosis as job
 from service.jobs.fit import update_drift
-from service.storage import crud
 from service.storage.models import PrognosisRow
+from tests.fit_rows import store_fit
 
 T0 = datetime.now(timezone.utc) - timedelta(days=2)
 
@@ -22,12 +22,7 @@ def _store_flat(env, first: int, last: int, *, rng) -> None:
     for i in range(first, last):
         do = 39.5 * (1 + rng.normal(0, 0.003))
         with env.Session() as s, s.begin():
-            op, _ = crud.create_operation(s, capture_key=f"flat{i}", breaker_id=1, kind="open",
-                                          occurred_at=T0 + i * timedelta(minutes=1), source="replay",
-                                          capture_path="/nonexistent.csv", capture_sha256="0" * 64, flags=[],
-                                          sample_rate=1.0, n_samples=1)
-            crud.claim_fit(s, operation_id=op.id, worker="test")
-            crud.store_fit_result(s, operation_id=op.id, curve=None, result={
+            store_fit(s, key=f"flat{i}", breaker_id=1, occurred_at=T0 + i * timedelta(minutes=1), result={
                 "parameters": {"AO": 3424.0, "BO": 4806.0 * (1 + rng.normal(0, 0.002)), "DO": do, "EO": 3950.0},
                 "ci95": {"DO": [do - 0.3, do + 0.3], "BO": [4790.0, 4822.0]}, "identifiable": True})
             update_drift(s, breaker_id=1, settings=env.settings.drift_settings)

@@ -149,6 +149,7 @@ def test_a_never_fed_parameter_does_not_keep_the_status_unknown_but_no_fit_at_al
 
 def test_served_a_breaker_with_its_latch_turned_off_raises_nothing_on_it(session_maker):
     from service.storage.models import DriftStateRow
+    from tests.fit_rows import store_fit
 
     off = DriftSettings(breakers={"reference-252kV": {"latch_time_s": "off"}})
     rng = np.random.default_rng(3)
@@ -157,12 +158,7 @@ def test_served_a_breaker_with_its_latch_turned_off_raises_nothing_on_it(session
         latch = HEALTHY_S * (1 + rng.normal(0, 0.02)) + max(0, i - ONSET + 1) * PER_OPENING_S
         chars = {"latch_time_s": latch, "vibration_events": []}
         with session_maker() as s, s.begin():
-            op, _ = crud.create_operation(s, capture_key=f"off{i}", breaker_id=1, kind="open",
-                                          occurred_at=T0 + timedelta(hours=i), source="replay",
-                                          capture_path="/nonexistent.cfg", capture_sha256="0" * 64, flags=[],
-                                          sample_rate=1.0, n_samples=1)
-            crud.claim_fit(s, operation_id=op.id, worker="test")
-            crud.store_fit_result(s, operation_id=op.id, curve=None, result={
+            store_fit(s, key=f"off{i}", breaker_id=1, occurred_at=T0 + timedelta(hours=i), result={
                 "parameters": {"AO": 3424.0, "BO": 4806.0, "DO": 39.5 * (1 + rng.normal(0, 0.01)), "EO": 3950.0},
                 "identifiable": True, "characteristics": chars})
             events += update_drift(s, breaker_id=1, settings=off)
