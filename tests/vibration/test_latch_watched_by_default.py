@@ -22,6 +22,7 @@ from service.settings import load_settings
 from service.storage import crud
 from service.storage.db import cached_engine, session_factory, upgrade
 from tests.conftest import BREAKER_FILE, REPO
+from tests.fit_rows import store_fit
 
 SHIPPED = load_settings(REPO / "config" / "default.toml").drift_settings
 T0 = datetime(2026, 1, 1, tzinfo=timezone.utc)
@@ -87,12 +88,7 @@ def _store(Session, i, latch, rng):
                  {"name": "first_shock", "t_s": -latch, "peak_g": 30.0, "clipped": False},
                  {"name": "latch_release", "t_s": -0.4e-3, "peak_g": 400.0, "clipped": False}]})
     with Session() as s, s.begin():
-        op, _ = crud.create_operation(s, capture_key=f"op{i}", breaker_id=1, kind="open",
-                                      occurred_at=T0 + timedelta(hours=i), source="replay",
-                                      capture_path="/nonexistent.cfg", capture_sha256="0" * 64, flags=[],
-                                      sample_rate=1.0, n_samples=1)
-        crud.claim_fit(s, operation_id=op.id, worker="test")
-        crud.store_fit_result(s, operation_id=op.id, curve=None, result={
+        store_fit(s, key=f"op{i}", breaker_id=1, occurred_at=T0 + timedelta(hours=i), result={
             "parameters": {"AO": 3424.0, "BO": bo, "DO": do, "EO": 3950.0},
             "ci95": {"DO": [do - 0.3, do + 0.3], "BO": [bo - 40, bo + 40]}, "identifiable": True,
             "characteristics": chars})

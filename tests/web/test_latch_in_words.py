@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from .weblive import PageLog, sign_in, start_server
+from tests.fit_rows import store_fit
 
 CODE = "latch_time_s"
 WORDS = "trip latch time"
@@ -29,12 +30,7 @@ def store_sticking_latch(Session, settings, *, t0, step, n=45, onset=30):
         latch = 1.2e-3 * (1 + rng.normal(0, 0.02)) + max(0, i - onset + 1) * 0.05e-3
         do, bo = 39.5 * (1 + rng.normal(0, 0.003)), 4806.0 * (1 + rng.normal(0, 0.002))
         with Session() as s, s.begin():
-            op, _ = crud.create_operation(s, capture_key=f"latch{i}", breaker_id=1, kind="open",
-                                          occurred_at=t0 + i * step, source="replay",
-                                          capture_path="/nonexistent.csv", capture_sha256="0" * 64, flags=[],
-                                          sample_rate=1.0, n_samples=1)
-            crud.claim_fit(s, operation_id=op.id, worker="test")
-            crud.store_fit_result(s, operation_id=op.id, curve=None, result={
+            store_fit(s, key=f"latch{i}", breaker_id=1, occurred_at=t0 + i * step, result={
                 "parameters": {"AO": 3424.0, "BO": bo, "DO": do, "EO": 3950.0},
                 "ci95": {"DO": [do - 0.3, do + 0.3], "BO": [bo - 16, bo + 16]}, "identifiable": True,
                 "characteristics": {"latch_time_s": latch, "vibration_events": [
